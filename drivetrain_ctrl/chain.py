@@ -1,0 +1,321 @@
+"""Building blocks of a drivetrain: bodies joined in a chain by couplings (POG form).
+
+A *chain* is a row of rigid bodies ``0 .. n-1`` (rotational: inertia [kg m^2], speed [rad/s];
+translational: mass [kg], speed [m/s]). Coupling ``c`` joins body ``c`` (upstream) and body
+``c + 1`` (downstream) through a ratio ``r_c`` (a gear ratio, or ``1/R`` for a wheel of radius
+``R``: the POG connection block). Its relative speed, in the upstream frame, is
+
+    w_c = omega_c - r_c * omega_{c+1}
+
+and its torque ``T_c`` (upstream frame) acts as ``-T_c`` on body ``c`` and ``+r_c T_c`` on body
+``c + 1``, so the power it takes is ``T_c w_c``. ``T_c`` is the parallel sum of an optional
+spring (linear or odd piecewise-linear table, optionally with a backlash gap), a viscous damper
+and a friction element. Each body may also have viscous, quadratic (aerodynamic) and Coulomb
+friction to ground, a constant load (e.g. gravity on a slope), an external torque input, and a
+first-order lagged source (the engine).
+
+These are pure data (frozen dataclasses). :func:`drivetrain_ctrl.model.Model` compiles a
+:class:`Chain` into arrays for the compiled kernels and offers the mode, guard, energy and
+linearisation API. The drivetrain itself (:mod:`drivetrain_ctrl.drivetrain`) is built from these
+blocks.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+__all__ = [
+    "PwlTable",
+    "Spring",
+    "Friction",
+    "Body",
+    "Coupling",
+    "LaggedSource",
+    "Chain",
+    "FRICTION_MODES",
+    "BACKLASH_MODES",
+]
+
+#: default mode names of a friction element, in kernel code order (0, 1, 2, 3)
+FRICTION_MODES: tuple[str, str, str, str] = ("stuck", "slip+", "slip-", "open")
+#: mode names of a spring with backlash: negative contact, gap, positive contact
+BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
+
+
+def _finite(owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{owner}.{name} must be a real number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
+    if lo is not None and (value <= lo if strict else value < lo):
+        raise ValueError(f"{owner}.{name} = {value!r}: must be {'>' if strict else '>='} {lo}")
+
+
+@dataclass(frozen=True, slots=True)
+class PwlTable:
+    """Piecewise-linear table ``y(x)``, clamped to the end values outside ``[x_0, x_last]``.
+
+    ``x`` strictly increasing. A single knot is a constant. Knots are breakpoints: the simulator
+    never integrates across one.
+    """
+
+    x: tuple[float, ...]
+    y: tuple[float, ...]
+    name: str = "table"
+
+    def __post_init__(self) -> None:
+        if len(self.x) != len(self.y) or not self.x:
+            raise ValueError(f"{self.name}: x and y must be non-empty and of equal length")
+        for i, (a, b) in enumerate(zip(self.x, self.y, strict=True)):
+            _finite(self.name, f"x[{i}]", a)
+            _finite(self.name, f"y[{i}]", b)
+        for i in range(1, len(self.x)):
+            if not self.x[i] > self.x[i - 1]:
+                raise ValueError(
+                    f"{self.name}: x must be strictly increasing, x[{i}]={self.x[i]} <= "
+                    f"x[{i - 1}]={self.x[i - 1]}"
+                )
+
+    def __call__(self, v: float) -> float:
+        x, y = self.x, self.y
+        if v <= x[0]:
+            return y[0]
+        if v >= x[-1]:
+            return y[-1]
+        for k in range(len(x) - 1):
+            if v <= x[k + 1]:
+                return y[k] + (y[k + 1] - y[k]) * (v - x[k]) / (x[k + 1] - x[k])
+        return y[-1]  # pragma: no cover
+
+
+@dataclass(frozen=True, slots=True)
+class Spring:
+    """Odd piecewise-linear spring with an optional backlash gap.
+
+    ``x`` (>= 0, starting at 0, strictly increasing) and ``y`` (starting at 0) give the torque
+    [N m] (or force [N]) at deflection ``x`` [rad] (or [m]) for positive deflections; negative
+    deflections mirror it (odd). Beyond the last knot the last segment's slope continues.
+    ``backlash`` is the half gap ``g`` >= 0: the spring acts on ``q - g`` for ``q > g``, on
+    ``q + g`` for ``q < -g`` and carries nothing in between. With a gap, the regions are the modes
+    ``contact-``, ``gap``, ``contact+``.
+    """
+
+    x: tuple[float, ...]
+    y: tuple[float, ...]
+    backlash: float = 0.0
+    name: str = "spring"
+
+    def __post_init__(self) -> None:
+        if len(self.x) != len(self.y) or len(self.x) < 2:
+            raise ValueError(f"{self.name}: needs at least two knots (x, y) of equal length")
+        if self.x[0] != 0.0 or self.y[0] != 0.0:
+            raise ValueError(
+                f"{self.name}: first knot must be (0, 0), got ({self.x[0]}, {self.y[0]})"
+            )
+        for i in range(1, len(self.x)):
+            _finite(self.name, f"x[{i}]", self.x[i])
+            _finite(self.name, f"y[{i}]", self.y[i])
+            if not self.x[i] > self.x[i - 1]:
+                raise ValueError(f"{self.name}: x must be strictly increasing at x[{i}]={self.x[i]}")
+        _finite(self.name, "backlash", self.backlash, lo=0.0)
+
+    @classmethod
+    def linear(cls, stiffness: float, *, backlash: float = 0.0, name: str = "spring") -> Spring:
+        """Linear spring of ``stiffness`` [N m/rad or N/m] with half gap ``backlash``."""
+        _finite(name, "stiffness", stiffness, lo=0.0, strict=True)
+        return cls((0.0, 1.0), (0.0, float(stiffness)), float(backlash), name)
+
+    def torque(self, q: float) -> float:
+        """Spring torque [N m] at deflection ``q`` [rad] (reference implementation)."""
+        a = abs(q) - self.backlash
+        if a <= 0.0:
+            return 0.0
+        x, y = self.x, self.y
+        k = len(x) - 2
+        for j in range(len(x) - 1):
+            if a <= x[j + 1]:
+                k = j
+                break
+        val = y[k] + (y[k + 1] - y[k]) * (a - x[k]) / (x[k + 1] - x[k])
+        return math.copysign(val, q)
+
+
+@dataclass(frozen=True, slots=True)
+class Friction:
+    """Coulomb friction element (between two bodies, or from a body to ground).
+
+    Kinetic capacity [N m or N] = ``scale * base * mu(|w|)`` where ``base`` is ``1`` if
+    ``capacity_input`` is None, the input's value if ``capacity_table`` is None, else
+    ``capacity_table(input)``; ``mu`` is ``mu_table(|w|)`` (ratio, 1 at zero slip) or 1.
+    Static capacity = ``static_ratio * scale * base``. A capacity <= 0 is the mode ``open``: no
+    torque and no stick test. ``mode_names`` rename the modes (stuck, slip+, slip-, open), e.g.
+    ``grip`` for a tyre.
+    """
+
+    scale: float = 1.0
+    capacity_input: str | None = None
+    capacity_table: PwlTable | None = None
+    static_ratio: float = 1.0
+    mu_table: PwlTable | None = None
+    mode_names: tuple[str, str, str, str] = FRICTION_MODES
+    name: str = "friction"
+
+    def __post_init__(self) -> None:
+        _finite(self.name, "scale", self.scale, lo=0.0)
+        _finite(self.name, "static_ratio", self.static_ratio, lo=1.0)
+        if self.capacity_table is not None and self.capacity_input is None:
+            raise ValueError(f"{self.name}: capacity_table needs a capacity_input")
+        if self.mu_table is not None and self.mu_table.x[0] != 0.0:
+            raise ValueError(f"{self.name}: mu_table must start at slip 0, got {self.mu_table.x[0]}")
+        if len(self.mode_names) != 4 or len(set(self.mode_names)) != 4:
+            raise ValueError(f"{self.name}: mode_names must be 4 distinct names")
+
+
+@dataclass(frozen=True, slots=True)
+class Body:
+    """A rigid body of a chain.
+
+    ``inertia`` [kg m^2] (rotational) or mass [kg] (translational); ``viscous`` [N m s/rad or
+    N s/m] to ground; ``quadratic`` [N m s^2/rad^2 or N s^2/m^2] drag ``quadratic * w |w|``;
+    ``load`` constant torque/force [N m or N] acting on the body (gravity on a slope: negative
+    uphill), stored as potential energy via the body's position; ``ground_friction`` Coulomb
+    friction to ground; ``torque_input`` name of an input whose value times ``input_gain``
+    is a torque [N m] / force [N] on the body.
+    """
+
+    name: str
+    inertia: float
+    kind: str = "rotational"
+    viscous: float = 0.0
+    quadratic: float = 0.0
+    load: float = 0.0
+    ground_friction: Friction | None = None
+    torque_input: str | None = None
+    input_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        _finite(self.name, "inertia", self.inertia, lo=0.0, strict=True)
+        _finite(self.name, "viscous", self.viscous, lo=0.0)
+        _finite(self.name, "quadratic", self.quadratic, lo=0.0)
+        _finite(self.name, "load", self.load)
+        _finite(self.name, "input_gain", self.input_gain)
+        if self.kind not in ("rotational", "translational"):
+            raise ValueError(f"{self.name}.kind = {self.kind!r}: must be rotational|translational")
+
+    @property
+    def tracks_position(self) -> bool:
+        """True if the body's position is a state (translational bodies and loaded bodies)."""
+        return self.kind == "translational" or self.load != 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class Coupling:
+    """Joins body ``c`` and ``c + 1``: ratio, and spring / damper / friction in parallel.
+
+    ``ratio`` [-] (or [1/m] from rotation to translation); ``damper`` [N m s/rad] in the upstream
+    frame; the spring's stiffness is in the upstream frame too.
+    """
+
+    name: str
+    ratio: float = 1.0
+    spring: Spring | None = None
+    damper: float = 0.0
+    friction: Friction | None = None
+
+    def __post_init__(self) -> None:
+        _finite(self.name, "ratio", self.ratio, lo=0.0, strict=True)
+        _finite(self.name, "damper", self.damper, lo=0.0)
+        if self.spring is None and self.damper == 0.0 and self.friction is None:
+            raise ValueError(f"{self.name}: a coupling needs a spring, a damper or a friction")
+
+
+@dataclass(frozen=True, slots=True)
+class LaggedSource:
+    """A torque source through a first-order lag (the engine of the paper, Section II-A).
+
+    State ``s`` [input unit] with ``tau * s' = input - s``; torque on ``body`` =
+    ``gain * s`` or, if ``gain_table`` is given, ``gain_table(omega_body) * s`` [N m].
+    """
+
+    name: str
+    body: str
+    input: str
+    tau: float
+    gain: float = 1.0
+    gain_table: PwlTable | None = None
+
+    def __post_init__(self) -> None:
+        _finite(self.name, "tau", self.tau, lo=0.0, strict=True)
+        _finite(self.name, "gain", self.gain)
+
+
+@dataclass(frozen=True, slots=True)
+class Chain:
+    """A row of bodies joined by couplings (``len(couplings) == len(bodies) - 1``)."""
+
+    bodies: tuple[Body, ...]
+    couplings: tuple[Coupling, ...]
+    sources: tuple[LaggedSource, ...] = ()
+    inputs: tuple[str, ...] = ()
+    name: str = "chain"
+    element_names: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
+
+    def __post_init__(self) -> None:
+        if len(self.bodies) < 1:
+            raise ValueError("Chain needs at least one body")
+        if len(self.couplings) != len(self.bodies) - 1:
+            raise ValueError(
+                f"Chain: {len(self.bodies)} bodies need {len(self.bodies) - 1} couplings, "
+                f"got {len(self.couplings)}"
+            )
+        names = [b.name for b in self.bodies] + [c.name for c in self.couplings]
+        if len(set(names)) != len(names):
+            raise ValueError(f"Chain: body and coupling names must be unique, got {names}")
+        body_names = {b.name for b in self.bodies}
+        used: list[tuple[str, str | None]] = []
+        for b in self.bodies:
+            used.append((b.name, b.torque_input))
+            if b.ground_friction is not None:
+                used.append((b.name, b.ground_friction.capacity_input))
+        for c in self.couplings:
+            if c.friction is not None:
+                used.append((c.name, c.friction.capacity_input))
+        for s in self.sources:
+            if s.body not in body_names:
+                raise ValueError(f"source {s.name}: unknown body {s.body!r}; bodies: {body_names}")
+            used.append((s.name, s.input))
+        for owner, inp in used:
+            if inp is not None and inp not in self.inputs:
+                raise ValueError(
+                    f"{owner}: input {inp!r} is not declared in Chain.inputs {self.inputs}"
+                )
+
+    def body_index(self, name: str) -> int:
+        """Index of the body called ``name``."""
+        for i, b in enumerate(self.bodies):
+            if b.name == name:
+                return i
+        raise KeyError(f"no body {name!r}; bodies: {[b.name for b in self.bodies]}")
+
+
+def two_body_clutch(
+    j1: float, j2: float, *, capacity: float | str, static_ratio: float = 1.0, load2: float = 0.0
+) -> Chain:
+    """Small example chain: two inertias [kg m^2] joined by a clutch.
+
+    ``capacity`` is a constant [N m] or the name of an input giving it.
+    """
+    if isinstance(capacity, str):
+        fr = Friction(capacity_input=capacity, static_ratio=static_ratio, name="clutch")
+        inputs: Sequence[str] = (capacity, "torque1")
+    else:
+        fr = Friction(scale=float(capacity), static_ratio=static_ratio, name="clutch")
+        inputs = ("torque1",)
+    return Chain(
+        bodies=(Body("b1", j1, torque_input="torque1"), Body("b2", j2, load=load2)),
+        couplings=(Coupling("clutch", friction=fr),),
+        inputs=tuple(inputs),
+        name="two-body clutch",
+    )

@@ -1,0 +1,570 @@
+"""Compiled (numba) kernels of a chain model: forces, modes, guards, energy, Jacobian.
+
+Everything here works on :class:`ChainData` (arrays made by :mod:`drivetrain_ctrl.model`), so
+the same code serves the Python API (``Model.rhs`` etc.), the linearisation and the simulator's
+hot loop. Conventions (see :mod:`drivetrain_ctrl.chain`):
+
+* state ``x = [omega (n), q (springs), position (tracked bodies), lag states]``;
+* friction element mode ``fm[f]``: ``STUCK = 0``, ``SLIP_POS = 1``, ``SLIP_NEG = 2``,
+  ``OPEN = 3``; table region ``reg[k]``: index of the affine piece in use;
+* stuck elements are constraints ``G omega = 0``; with ``M a = tau - G^T lam`` the accelerations
+  are ``a = P tau`` and the stuck torques ``lam = Lam tau`` with ``P``, ``Lam`` from
+  :func:`mode_matrices` (the generalisation of the paper's transformation T, eq. (3)-(4));
+* guards ``g >= 0`` in the current mode; a sign change to negative is an event.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+STUCK, SLIP_POS, SLIP_NEG, OPEN = 0, 1, 2, 3
+ARG_TWIST, ARG_SLIP, ARG_SPEED, ARG_INPUT = 0, 1, 2, 3
+
+F64 = NDArray[np.float64]
+I64 = NDArray[np.int64]
+
+
+class ChainData(NamedTuple):
+    """Array form of a :class:`~drivetrain_ctrl.chain.Chain` (SI units, upstream frames)."""
+
+    M: F64  # (n,) inertia [kg m^2] / mass [kg]
+    visc: F64  # (n,)
+    quad: F64  # (n,)
+    load: F64  # (n,)
+    b_uidx: I64  # (n,) input index of the torque input, -1 none
+    b_ugain: F64  # (n,)
+    b_pos: I64  # (n,) state index of the position, -1 none
+    ratio: F64  # (m,)
+    damp: F64  # (m,)
+    c_table: I64  # (m,) spring table index, -1 none
+    c_q: I64  # (m,) twist state index, -1 none
+    f_kind: I64  # (nf,) 0 coupling, 1 ground
+    f_idx: I64  # (nf,) coupling or body index
+    f_scale: F64
+    f_uidx: I64
+    f_table: I64
+    f_static: F64
+    f_mu: I64
+    t_nb: I64  # (nt,) number of bounds
+    t_b: F64  # (nt, maxb) bounds
+    t_s: F64  # (nt, maxb+1) slopes
+    t_o: F64  # (nt, maxb+1) offsets
+    t_e: F64  # (nt, maxb+1) energy constants (springs)
+    t_kind: I64
+    t_idx: I64
+    l_body: I64  # (nl,)
+    l_uidx: I64
+    l_tau: F64
+    l_gain: F64
+    l_table: I64
+    l_x: I64  # state index of the lag state
+    nx: int
+
+
+@njit(cache=True)
+def rel_speed(D: ChainData, f: int, x: F64) -> float:
+    """Relative speed of friction element ``f`` [rad/s or m/s] (upstream frame)."""
+    i = D.f_idx[f]
+    if D.f_kind[f] == 0:
+        return x[i] - D.ratio[i] * x[i + 1]
+    return x[i]
+
+
+@njit(cache=True)
+def table_arg(D: ChainData, k: int, x: F64, u: F64) -> float:
+    """Argument of table ``k`` at state ``x`` and inputs ``u``."""
+    kind = D.t_kind[k]
+    idx = D.t_idx[k]
+    if kind == ARG_TWIST:
+        return x[D.c_q[idx]]
+    if kind == ARG_SLIP:
+        return abs(rel_speed(D, idx, x))
+    if kind == ARG_SPEED:
+        return x[idx]
+    return u[idx]
+
+
+@njit(cache=True)
+def table_region(D: ChainData, k: int, a: float) -> int:
+    """Index of the affine piece of table ``k`` that contains ``a``."""
+    r = 0
+    nb = D.t_nb[k]
+    while r < nb and a > D.t_b[k, r]:
+        r += 1
+    return r
+
+
+@njit(cache=True)
+def table_value(D: ChainData, k: int, r: int, a: float) -> float:
+    return D.t_s[k, r] * a + D.t_o[k, r]
+
+
+@njit(cache=True)
+def update_regions(D: ChainData, x: F64, u: F64, reg: I64) -> None:
+    """Set every table's region from the current arguments (used at events)."""
+    for k in range(D.t_nb.shape[0]):
+        reg[k] = table_region(D, k, table_arg(D, k, x, u))
+
+
+@njit(cache=True)
+def capacity(D: ChainData, f: int, u: F64, reg: I64) -> float:
+    """Kinetic capacity of friction element ``f`` at zero slip [N m or N]."""
+    ui = D.f_uidx[f]
+    if ui < 0:
+        base = 1.0
+    elif D.f_table[f] < 0:
+        base = u[ui]
+    else:
+        k = D.f_table[f]
+        base = table_value(D, k, reg[k], u[ui])
+    return D.f_scale[f] * base
+
+
+@njit(cache=True)
+def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
+    """mu(|w|)/mu(0) of friction element ``f``."""
+    k = D.f_mu[f]
+    if k < 0:
+        return 1.0
+    return table_value(D, k, reg[k], abs(rel_speed(D, f, x)))
+
+
+@njit(cache=True)
+def _apply_coupling(D: ChainData, f_or_c: int, kind: int, T: float, tau: F64) -> None:
+    if kind == 0:
+        tau[f_or_c] -= T
+        tau[f_or_c + 1] += D.ratio[f_or_c] * T
+    else:
+        tau[f_or_c] -= T
+
+
+@njit(cache=True)
+def forces(D: ChainData, x: F64, u: F64, fm: I64, reg: I64) -> F64:
+    """Generalised torques on the bodies [N m or N], without the stuck (constraint) torques."""
+    n = D.M.shape[0]
+    tau = np.empty(n)
+    for i in range(n):
+        w = x[i]
+        t = -D.visc[i] * w - D.quad[i] * w * abs(w) + D.load[i]
+        if D.b_uidx[i] >= 0:
+            t += D.b_ugain[i] * u[D.b_uidx[i]]
+        tau[i] = t
+    for j in range(D.l_body.shape[0]):
+        b = D.l_body[j]
+        kt = D.l_table[j]
+        g = D.l_gain[j] if kt < 0 else D.l_gain[j] * table_value(D, kt, reg[kt], x[b])
+        tau[b] += g * x[D.l_x[j]]
+    for c in range(D.ratio.shape[0]):
+        w = x[c] - D.ratio[c] * x[c + 1]
+        T = D.damp[c] * w
+        kt = D.c_table[c]
+        if kt >= 0:
+            T += table_value(D, kt, reg[kt], x[D.c_q[c]])
+        tau[c] -= T
+        tau[c + 1] += D.ratio[c] * T
+    for f in range(D.f_kind.shape[0]):
+        m = fm[f]
+        if m == SLIP_POS or m == SLIP_NEG:
+            s = 1.0 if m == SLIP_POS else -1.0
+            F = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s
+            _apply_coupling(D, D.f_idx[f], D.f_kind[f], F, tau)
+    return tau
+
+
+@njit(cache=True)
+def constraint_rows(D: ChainData, fm: I64, which: I64) -> F64:
+    """Rows ``G`` (one per element with ``which[f]`` true) with ``G omega`` = relative speeds."""
+    n = D.M.shape[0]
+    k = 0
+    for f in range(fm.shape[0]):
+        if which[f]:
+            k += 1
+    G = np.zeros((k, n))
+    r = 0
+    for f in range(fm.shape[0]):
+        if which[f]:
+            i = D.f_idx[f]
+            if D.f_kind[f] == 0:
+                G[r, i] = 1.0
+                G[r, i + 1] = -D.ratio[i]
+            else:
+                G[r, i] = 1.0
+            r += 1
+    return G
+
+
+@njit(cache=True)
+def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
+    """``P`` (n, n) and ``Lam`` (nf, n): accelerations ``P tau``, stuck torques ``Lam tau``."""
+    n = D.M.shape[0]
+    nf = fm.shape[0]
+    which = np.zeros(nf, dtype=np.int64)
+    for f in range(nf):
+        if fm[f] == STUCK:
+            which[f] = 1
+    Minv = np.diag(1.0 / D.M)
+    Lam = np.zeros((nf, n))
+    G = constraint_rows(D, fm, which)
+    if G.shape[0] == 0:
+        return Minv, Lam
+    S = G @ Minv @ G.T
+    Sp = np.linalg.pinv(S)
+    L = Sp @ G @ Minv
+    P = Minv - Minv @ G.T @ L
+    r = 0
+    for f in range(nf):
+        if which[f]:
+            Lam[f, :] = L[r, :]
+            r += 1
+    return P, Lam
+
+
+@njit(cache=True)
+def project(D: ChainData, x: F64, fm: I64, which: I64) -> None:
+    """Momentum-preserving projection of the speeds onto ``w_f = 0`` for ``which[f]``."""
+    G = constraint_rows(D, fm, which)
+    if G.shape[0] == 0:
+        return
+    n = D.M.shape[0]
+    Minv = np.diag(1.0 / D.M)
+    w = G @ x[:n]
+    corr = Minv @ G.T @ (np.linalg.pinv(G @ Minv @ G.T) @ w)
+    for i in range(n):
+        x[i] -= corr[i]
+    # exact zeros on the constrained relative speeds (round-off)
+    for f in range(fm.shape[0]):
+        if which[f] and D.f_kind[f] == 1:
+            x[D.f_idx[f]] = 0.0
+
+
+@njit(cache=True)
+def rhs(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, xdot: F64) -> None:
+    """Time derivative of the state in the current mode (``P`` from :func:`mode_matrices`)."""
+    n = D.M.shape[0]
+    tau = forces(D, x, u, fm, reg)
+    a = P @ tau
+    for i in range(n):
+        xdot[i] = a[i]
+        if D.b_pos[i] >= 0:
+            xdot[D.b_pos[i]] = x[i]
+    for c in range(D.ratio.shape[0]):
+        if D.c_q[c] >= 0:
+            xdot[D.c_q[c]] = x[c] - D.ratio[c] * x[c + 1]
+    for j in range(D.l_body.shape[0]):
+        xdot[D.l_x[j]] = (u[D.l_uidx[j]] - x[D.l_x[j]]) / D.l_tau[j]
+
+
+@njit(cache=True)
+def stuck_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> F64:
+    """Friction torque [N m or N] each stuck element must carry (0 for the others)."""
+    return Lam @ forces(D, x, u, fm, reg)
+
+
+@njit(cache=True)
+def n_guards(D: ChainData) -> int:
+    return D.f_kind.shape[0] + 2 * D.t_nb.shape[0]
+
+
+@njit(cache=True)
+def guards(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64
+) -> None:
+    """Guard values (>= 0 while the mode holds) into ``g``.
+
+    Layout: one per friction element (slip: ``s w``; stuck: static capacity - ``|lam|``;
+    open: ``-capacity``), then two per table (distance to the lower and upper bound of the
+    current region; ``+inf`` where there is none).
+    """
+    nf = D.f_kind.shape[0]
+    lam = Lam @ forces(D, x, u, fm, reg)
+    for f in range(nf):
+        m = fm[f]
+        cap = capacity(D, f, u, reg)
+        if m == OPEN:
+            g[f] = -cap
+        elif m == STUCK:
+            g[f] = D.f_static[f] * cap - abs(lam[f])
+        elif m == SLIP_POS:
+            g[f] = rel_speed(D, f, x)
+        else:
+            g[f] = -rel_speed(D, f, x)
+    for k in range(D.t_nb.shape[0]):
+        lo = nf + 2 * k
+        if D.t_kind[k] == ARG_SLIP:
+            m = fm[D.t_idx[k]]
+            if m != SLIP_POS and m != SLIP_NEG:
+                g[lo] = np.inf
+                g[lo + 1] = np.inf
+                continue
+        a = table_arg(D, k, x, u)
+        r = reg[k]
+        g[lo] = a - D.t_b[k, r - 1] if r > 0 else np.inf
+        g[lo + 1] = D.t_b[k, r] - a if r < D.t_nb[k] else np.inf
+
+
+@njit(cache=True)
+def _consistency(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64
+) -> float:
+    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
+    P, Lam = mode_matrices(D, fm)
+    tau = forces(D, x, u, fm, reg)
+    a = P @ tau
+    lam = Lam @ tau
+    viol = 0.0
+    for f in range(fm.shape[0]):
+        if not cand[f]:
+            continue
+        if fm[f] == STUCK:
+            lim = D.f_static[f] * caps[f]
+            ex = abs(lam[f]) - lim * (1.0 + 1e-12) - 1e-12
+            if ex > 0.0:
+                viol += ex / (lim + 1e-300)
+        else:
+            i = D.f_idx[f]
+            dw = a[i] - D.ratio[i] * a[i + 1] if D.f_kind[f] == 0 else a[i]
+            s = 1.0 if fm[f] == SLIP_POS else -1.0
+            if dw * s <= 0.0:
+                viol += 1.0 + abs(dw)
+    return viol
+
+
+@njit(cache=True)
+def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) -> int:
+    """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
+
+    Elements with ``|w| <= tol`` and positive capacity are decided together: of all
+    stuck / slip+ / slip- combinations the consistent one with the most elements stuck is taken
+    (stuck torques within static capacity, slip directions agreeing with the accelerations).
+    Returns the number of candidates (or ``-1`` if no combination was consistent and the least
+    inconsistent one was taken).
+    """
+    nf = fm.shape[0]
+    update_regions(D, x, u, reg)
+    cand = np.zeros(nf, dtype=np.int64)
+    caps = np.zeros(nf)
+    nc = 0
+    for f in range(nf):
+        cap = capacity(D, f, u, reg)
+        caps[f] = cap
+        w = rel_speed(D, f, x)
+        if cap <= 0.0:
+            fm[f] = OPEN
+        elif abs(w) > tol:
+            fm[f] = SLIP_POS if w > 0 else SLIP_NEG
+        else:
+            cand[f] = 1
+            nc += 1
+    if nc == 0:
+        return 0
+    project(D, x, fm, cand)
+    update_regions(D, x, u, reg)
+    idx = np.empty(nc, dtype=np.int64)
+    j = 0
+    for f in range(nf):
+        if cand[f]:
+            idx[j] = f
+            j += 1
+    ncomb = 3**nc
+    best_code = 0
+    best_viol = np.inf
+    trial = fm.copy()
+    for n_stuck in range(nc, -1, -1):
+        for code in range(ncomb):
+            c = code
+            ns = 0
+            for jj in range(nc):
+                d = c % 3
+                c //= 3
+                trial[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
+                if d == 0:
+                    ns += 1
+            if ns != n_stuck:
+                continue
+            v = _consistency(D, x, u, trial, reg, cand, caps)
+            if v == 0.0:
+                for jj in range(nc):
+                    fm[idx[jj]] = trial[idx[jj]]
+                return nc
+            if v < best_viol:
+                best_viol = v
+                best_code = code
+    c = best_code
+    for jj in range(nc):
+        d = c % 3
+        c //= 3
+        fm[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
+    return -1
+
+
+@njit(cache=True)
+def stored_energy(D: ChainData, x: F64) -> float:
+    """Stored energy [J]: kinetic, elastic (integral of each spring law) and potential."""
+    n = D.M.shape[0]
+    E = 0.0
+    for i in range(n):
+        E += 0.5 * D.M[i] * x[i] * x[i]
+        if D.b_pos[i] >= 0:
+            E -= D.load[i] * x[D.b_pos[i]]
+    for c in range(D.ratio.shape[0]):
+        k = D.c_table[c]
+        if k >= 0:
+            q = x[D.c_q[c]]
+            r = table_region(D, k, q)
+            E += 0.5 * D.t_s[k, r] * q * q + D.t_o[k, r] * q + D.t_e[k, r]
+    return E
+
+
+@njit(cache=True)
+def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[float, F64]:
+    """Power supplied [W] and power dissipated per element [W].
+
+    Dissipation layout: ``n`` bodies (viscous + quadratic to ground), ``m`` coupling dampers,
+    ``nf`` friction elements (kinetic torque times slip speed; stuck/open: 0).
+    """
+    n = D.M.shape[0]
+    m = D.ratio.shape[0]
+    nf = D.f_kind.shape[0]
+    pd = np.zeros(n + m + nf)
+    p_in = 0.0
+    for i in range(n):
+        w = x[i]
+        pd[i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
+        if D.b_uidx[i] >= 0:
+            p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
+    for j in range(D.l_body.shape[0]):
+        b = D.l_body[j]
+        kt = D.l_table[j]
+        g = D.l_gain[j] if kt < 0 else D.l_gain[j] * table_value(D, kt, reg[kt], x[b])
+        p_in += g * x[D.l_x[j]] * x[b]
+    for c in range(m):
+        w = x[c] - D.ratio[c] * x[c + 1]
+        pd[n + c] = D.damp[c] * w * w
+    lam = Lam @ forces(D, x, u, fm, reg)
+    for f in range(nf):
+        w = rel_speed(D, f, x)
+        if fm[f] == SLIP_POS or fm[f] == SLIP_NEG:
+            s = 1.0 if fm[f] == SLIP_POS else -1.0
+            pd[n + m + f] = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s * w
+        elif fm[f] == STUCK:
+            pd[n + m + f] = lam[f] * w
+    return p_in, pd
+
+
+@njit(cache=True)
+def jacobians(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, linear_only: bool
+) -> tuple[F64, F64]:
+    """Analytic ``d xdot / d x`` (nx, nx) and ``d xdot / d u`` (nx, nu) within the mode.
+
+    With ``linear_only`` the smooth nonlinear terms (quadratic drag, the slopes of the
+    friction-vs-slip and engine full-load tables, capacity-vs-input) are left out: what remains
+    is the ``A``, ``B`` of the POG form ``L x' = A x + B u + g(x, u)``.
+    """
+    n = D.M.shape[0]
+    nx = D.nx
+    nu = u.shape[0]
+    dt = np.zeros((n, nx))
+    du = np.zeros((n, nu))
+    for i in range(n):
+        dt[i, i] -= D.visc[i]
+        if not linear_only:
+            dt[i, i] -= 2.0 * D.quad[i] * abs(x[i])
+        if D.b_uidx[i] >= 0:
+            du[i, D.b_uidx[i]] += D.b_ugain[i]
+    for j in range(D.l_body.shape[0]):
+        b = D.l_body[j]
+        kt = D.l_table[j]
+        if kt < 0:
+            dt[b, D.l_x[j]] += D.l_gain[j]
+        else:
+            r = reg[kt]
+            if linear_only:
+                continue
+            dt[b, D.l_x[j]] += D.l_gain[j] * table_value(D, kt, r, x[b])
+            dt[b, b] += D.l_gain[j] * D.t_s[kt, r] * x[D.l_x[j]]
+    for c in range(D.ratio.shape[0]):
+        r_c = D.ratio[c]
+        row = np.zeros(nx)
+        row[c] += D.damp[c]
+        row[c + 1] -= D.damp[c] * r_c
+        kt = D.c_table[c]
+        if kt >= 0:
+            row[D.c_q[c]] += D.t_s[kt, reg[kt]]
+        for k in range(nx):
+            dt[c, k] -= row[k]
+            dt[c + 1, k] += r_c * row[k]
+    if not linear_only:
+        for f in range(D.f_kind.shape[0]):
+            m = fm[f]
+            if m != SLIP_POS and m != SLIP_NEG:
+                continue
+            s = 1.0 if m == SLIP_POS else -1.0
+            cap = capacity(D, f, u, reg)
+            i = D.f_idx[f]
+            kind = D.f_kind[f]
+            # d F / d w from the mu(|w|) table: F = cap * (a |w| + b) * s
+            kmu = D.f_mu[f]
+            dFdw = cap * D.t_s[kmu, reg[kmu]] if kmu >= 0 else 0.0
+            if dFdw != 0.0:
+                if kind == 0:
+                    dt[i, i] -= dFdw
+                    dt[i, i + 1] += dFdw * D.ratio[i]
+                    dt[i + 1, i] += D.ratio[i] * dFdw
+                    dt[i + 1, i + 1] -= D.ratio[i] * dFdw * D.ratio[i]
+                else:
+                    dt[i, i] -= dFdw
+            ui = D.f_uidx[f]
+            if ui >= 0:
+                kt = D.f_table[f]
+                dcap = D.f_scale[f] * (1.0 if kt < 0 else D.t_s[kt, reg[kt]])
+                dF = dcap * mu_ratio(D, f, x, reg) * s
+                if kind == 0:
+                    du[i, ui] -= dF
+                    du[i + 1, ui] += D.ratio[i] * dF
+                else:
+                    du[i, ui] -= dF
+    J = np.zeros((nx, nx))
+    B = np.zeros((nx, nu))
+    J[:n, :] = P @ dt
+    B[:n, :] = P @ du
+    for i in range(n):
+        if D.b_pos[i] >= 0:
+            J[D.b_pos[i], i] = 1.0
+    for c in range(D.ratio.shape[0]):
+        if D.c_q[c] >= 0:
+            J[D.c_q[c], c] = 1.0
+            J[D.c_q[c], c + 1] = -D.ratio[c]
+    for j in range(D.l_body.shape[0]):
+        J[D.l_x[j], D.l_x[j]] = -1.0 / D.l_tau[j]
+        B[D.l_x[j], D.l_uidx[j]] += 1.0 / D.l_tau[j]
+    return J, B
+
+
+@njit(cache=True)
+def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> F64:
+    """Total torque of each coupling [N m] (upstream frame): spring + damper + friction."""
+    m = D.ratio.shape[0]
+    out = np.zeros(m)
+    for c in range(m):
+        w = x[c] - D.ratio[c] * x[c + 1]
+        T = D.damp[c] * w
+        kt = D.c_table[c]
+        if kt >= 0:
+            T += table_value(D, kt, reg[kt], x[D.c_q[c]])
+        out[c] = T
+    lam = Lam @ forces(D, x, u, fm, reg)
+    for f in range(D.f_kind.shape[0]):
+        if D.f_kind[f] != 0:
+            continue
+        c = D.f_idx[f]
+        if fm[f] == STUCK:
+            out[c] += lam[f]
+        elif fm[f] == SLIP_POS or fm[f] == SLIP_NEG:
+            s = 1.0 if fm[f] == SLIP_POS else -1.0
+            out[c] += capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s
+    return out

@@ -1,0 +1,1106 @@
+"""Immutable, validated parameters of the dry-clutch drivetrain model.
+
+The parameters follow the symbols of Zanasi, Grossi et al., "Dynamic Modeling and Control of a Car
+Transmission System" (see ``car_transmission_paper.md``); every value is in SI units (m, kg, s, rad,
+N, N m). Each field of each section carries metadata (see :func:`field_info`):
+
+``unit``
+    SI unit of the stored value, e.g. ``"kg m^2"``; ``"-"`` for dimensionless values.
+``frame``
+    The shaft (or body) the value is referred to: ``"engine"`` (omega_1), ``"primary"`` (clutch disc
+    and gearbox primary shaft, omega_2 / omega_3), ``"secondary"`` (gearbox secondary shaft,
+    omega_sec = omega_3 / tau_r), ``"wheel"`` (half-shafts and wheels, omega_4 / omega_5),
+    ``"vehicle"`` (translation, v_v) or ``"-"`` (not tied to a shaft).
+``description``, ``min``, ``max``, ``min_inclusive``, ``max_inclusive``
+    Meaning and admissible range (``None`` = unbounded).
+
+Objects are frozen, slotted dataclasses validated on construction; an invalid value raises
+:class:`ParameterError` (a :class:`ValueError`) whose message names the dotted field path and the
+offending value, e.g. ``engine.J1 = -0.2: must be > 0 [kg m^2]``. Derive modified sets with
+:meth:`DrivetrainParams.replace` (dotted paths), which validates again.
+
+Parameter files (TOML) have a ``[meta]`` table (``name``, ``description``), one table per section
+(``[engine]``, ``[clutch]``, ``[damper]``, ``[gearbox]``, ``[driveline]``, ``[vehicle]``,
+``[brake]``, ``[actuator]``, ``[law6]``) and an optional ``[provenance]`` table mapping quoted
+dotted field paths to source texts. Lookup tables are written
+``name = { x = [...], y = [...] }``. Every field is required, with no silent defaults, except
+those whose default is the paper's own choice:
+
+* every static/kinetic friction ratio (``engine.static_ratio``, ``clutch.static_ratio``,
+  ``damper.static_ratio``, ``vehicle.rolling_static_ratio``, ``vehicle.tyre_static_ratio``,
+  ``brake.static_ratio``): 1.0, the paper's single ``k sgn()`` value;
+* ``clutch.mu_table``: flat, mu(slip)/mu(0) = 1 at every slip speed;
+* ``driveline.b5``: 0.0 (no viscous loss at the wheels);
+* ``engine.full_load_curve`` may be omitted when ``engine.torque_model = "linear"`` (the paper's
+  ``C_G = K theta``); it is required when ``torque_model = "map"``.
+
+Unknown or misspelt keys are errors (with a "did you mean" suggestion).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import functools
+import math
+import tomllib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, ClassVar, NamedTuple, TypeAlias, cast, overload
+
+import numpy as np
+import tomli_w
+from numpy.typing import NDArray
+
+from drivetrain_ctrl.units import GRAVITY
+
+__all__ = [
+    "FRAMES",
+    "ActuatorParams",
+    "BrakeParams",
+    "ClutchParams",
+    "DamperParams",
+    "DrivelineParams",
+    "DrivetrainParams",
+    "EngineParams",
+    "GearboxParams",
+    "Law6Params",
+    "ParameterError",
+    "Table",
+    "VehicleParams",
+    "available_parameter_sets",
+    "default_params",
+    "field_info",
+    "field_paths",
+    "load_params",
+    "params_from_dict",
+    "params_to_dict",
+    "save_params",
+]
+
+#: Admissible values of the ``frame`` metadata entry.
+FRAMES: tuple[str, ...] = ("engine", "primary", "secondary", "wheel", "vehicle", "-")
+
+PARAMETER_SETS_DIR: Path = Path(__file__).resolve().parent / "parameter_sets"
+
+FloatOrArray: TypeAlias = float | NDArray[np.float64]
+
+
+class ParameterError(ValueError):
+    """An invalid, missing or unknown parameter; the message names the dotted field path."""
+
+
+# --------------------------------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------------------------------
+
+
+def _fmt(value: object) -> str:
+    """Format an offending value for an error message."""
+    if isinstance(value, bool | np.bool_):
+        return repr(bool(value))
+    if isinstance(value, int | float | np.integer | np.floating):
+        try:
+            return f"{float(value):.12g}"
+        except OverflowError:
+            return repr(value)
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _suggest(key: str, candidates: Iterable[str]) -> str:
+    """Return "; did you mean 'x'?" for a close match of ``key`` among ``candidates``, else ""."""
+    by_lower: dict[str, str] = {}
+    for c in candidates:
+        by_lower.setdefault(c.lower(), c)
+    match = difflib.get_close_matches(str(key).lower(), list(by_lower), n=1, cutoff=0.6)
+    return f"; did you mean '{by_lower[match[0]]}'?" if match else ""
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+
+
+def _to_float(path: str, value: object) -> float:
+    """Coerce a real number to a finite ``float``; reject bool, str, NaN and inf."""
+    if not _is_real(value):
+        raise ParameterError(
+            f"{path} = {_fmt(value)}: must be a real number, not {type(value).__name__}"
+        )
+    try:
+        x = float(cast(float, value))
+    except OverflowError:
+        raise ParameterError(f"{path} = {_fmt(value)}: must be finite") from None
+    if not math.isfinite(x):
+        raise ParameterError(f"{path} = {_fmt(value)}: must be finite")
+    return x
+
+
+def _to_float_tuple(path: str, value: object) -> tuple[float, ...]:
+    """Coerce a 1-D sequence of real numbers to a tuple of finite floats."""
+    if isinstance(value, np.ndarray):
+        if value.ndim != 1:
+            raise ParameterError(
+                f"{path}: must be a 1-D sequence of numbers, got shape {value.shape}"
+            )
+        value = value.tolist()
+    if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
+        raise ParameterError(f"{path} = {_fmt(value)}: must be a sequence of numbers")
+    return tuple(_to_float(f"{path}[{i}]", v) for i, v in enumerate(value))
+
+
+def _bounds_text(md: Mapping[str, Any]) -> str:
+    parts = []
+    if md["min"] is not None:
+        parts.append(f"{'>=' if md['min_inclusive'] else '>'} {_fmt(md['min'])}")
+    if md["max"] is not None:
+        parts.append(f"{'<=' if md['max_inclusive'] else '<'} {_fmt(md['max'])}")
+    return " and ".join(parts)
+
+
+def _in_bounds(x: float, md: Mapping[str, Any]) -> bool:
+    lo, hi = md["min"], md["max"]
+    if lo is not None and not (x >= lo if md["min_inclusive"] else x > lo):
+        return False
+    return hi is None or (x <= hi if md["max_inclusive"] else x < hi)
+
+
+def _check_bounds(path: str, x: float, md: Mapping[str, Any]) -> None:
+    if not _in_bounds(x, md):
+        raise ParameterError(f"{path} = {_fmt(x)}: must be {_bounds_text(md)} [{md['unit']}]")
+
+
+# --------------------------------------------------------------------------------------------------
+# tables
+# --------------------------------------------------------------------------------------------------
+
+_EXTRAPOLATIONS = ("clamp", "linear")
+_SYMMETRIES = ("none", "odd", "even")
+
+
+def _validate_xy(
+    path: str, x: object, y: object, x_name: str = "x", y_name: str = "y"
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    xs = _to_float_tuple(f"{path}.x", x)
+    ys = _to_float_tuple(f"{path}.y", y)
+    if len(xs) == 0:
+        raise ParameterError(f"{path}: a table needs at least one point, got x = []")
+    if len(xs) != len(ys):
+        raise ParameterError(
+            f"{path}: x and y must have the same length, got {len(xs)} and {len(ys)}"
+        )
+    for i in range(1, len(xs)):
+        if not xs[i] > xs[i - 1]:
+            raise ParameterError(
+                f"{path}: {x_name} must be strictly increasing, but x[{i}]={_fmt(xs[i])} "
+                f"<= x[{i - 1}]={_fmt(xs[i - 1])}"
+            )
+    return xs, ys
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """A 1-D lookup table ``y = f(x)``, piecewise linear between the knots.
+
+    ``x`` must be strictly increasing and ``y`` of the same length (a single knot is allowed and
+    means a constant). Values are stored as tuples of floats; :meth:`x_array` / :meth:`y_array`
+    return NumPy copies.
+
+    Evaluation (:meth:`__call__`) follows :func:`numpy.interp` inside the knot range. Outside it:
+
+    * ``extrapolation="clamp"`` (default): the end values are held;
+    * ``extrapolation="linear"``: the end segments are continued with their slopes.
+
+    ``symmetry="odd"`` evaluates ``sign(v) * f(|v|)`` and ``symmetry="even"`` evaluates ``f(|v|)``,
+    so such tables need knots for ``x >= 0`` only.
+    """
+
+    x: tuple[float, ...]
+    y: tuple[float, ...]
+    x_name: str = "x"
+    x_unit: str = "-"
+    y_name: str = "y"
+    y_unit: str = "-"
+    extrapolation: str = "clamp"
+    symmetry: str = "none"
+
+    def __post_init__(self) -> None:
+        xs, ys = _validate_xy("Table", self.x, self.y, self.x_name, self.y_name)
+        object.__setattr__(self, "x", xs)
+        object.__setattr__(self, "y", ys)
+        if self.extrapolation not in _EXTRAPOLATIONS:
+            raise ParameterError(
+                f"Table.extrapolation = {self.extrapolation!r}: must be one of {_EXTRAPOLATIONS}"
+            )
+        if self.symmetry not in _SYMMETRIES:
+            raise ParameterError(
+                f"Table.symmetry = {self.symmetry!r}: must be one of {_SYMMETRIES}"
+            )
+        for name in ("x_name", "x_unit", "y_name", "y_unit"):
+            if not isinstance(getattr(self, name), str):
+                raise ParameterError(f"Table.{name} = {_fmt(getattr(self, name))}: must be a str")
+
+    def x_array(self) -> NDArray[np.float64]:
+        """The knot abscissae as a new NumPy array [``x_unit``]."""
+        return np.array(self.x, dtype=np.float64)
+
+    def y_array(self) -> NDArray[np.float64]:
+        """The knot ordinates as a new NumPy array [``y_unit``]."""
+        return np.array(self.y, dtype=np.float64)
+
+    @overload
+    def __call__(self, v: float) -> float: ...
+    @overload
+    def __call__(self, v: NDArray[Any] | Sequence[float]) -> NDArray[np.float64]: ...
+    def __call__(self, v: float | NDArray[Any] | Sequence[float]) -> FloatOrArray:
+        """Evaluate the table at ``v`` [``x_unit``]; returns ``y`` [``y_unit``].
+
+        A scalar argument gives a ``float``, an array-like gives an array of the same shape.
+        """
+        a = np.asarray(v, dtype=np.float64)
+        u = a if self.symmetry == "none" else np.abs(a)
+        xs, ys = self.x_array(), self.y_array()
+        out = np.interp(u, xs, ys)
+        if self.extrapolation == "linear" and len(xs) >= 2:
+            lo_slope = (ys[1] - ys[0]) / (xs[1] - xs[0])
+            hi_slope = (ys[-1] - ys[-2]) / (xs[-1] - xs[-2])
+            out = np.where(u < xs[0], ys[0] + lo_slope * (u - xs[0]), out)
+            out = np.where(u > xs[-1], ys[-1] + hi_slope * (u - xs[-1]), out)
+        if self.symmetry == "odd":
+            out = np.sign(a) * out
+        if out.ndim == 0:
+            return float(out)
+        return np.asarray(out, dtype=np.float64)
+
+    def _labels(self) -> _TableSpec:
+        return _TableSpec(
+            self.x_name,
+            self.x_unit,
+            self.y_name,
+            self.y_unit,
+            self.extrapolation,
+            self.symmetry,
+        )
+
+
+class _TableSpec(NamedTuple):
+    x_name: str
+    x_unit: str
+    y_name: str
+    y_unit: str
+    extrapolation: str = "clamp"
+    symmetry: str = "none"
+
+
+_PLAIN_TABLE = _TableSpec("x", "-", "y", "-")
+_FULL_LOAD_SPEC = _TableSpec("omega1", "rad/s", "C_max", "N m")
+_PEDAL_SPEC = _TableSpec("x_c", "m", "k12", "N m")
+_MU_SPEC = _TableSpec("slip", "rad/s", "mu_ratio", "-", "clamp", "even")
+_SPRING_SPEC = _TableSpec("theta_d", "rad", "phi_e", "N m", "linear", "odd")
+
+
+def _coerce_table(path: str, value: object, spec: _TableSpec) -> Table:
+    """Build the canonical :class:`Table` of a field from a Table or a ``{x, y}`` mapping."""
+    if isinstance(value, Table):
+        labels = value._labels()
+        if labels not in (spec, _PLAIN_TABLE):
+            raise ParameterError(
+                f"{path}: table is labelled {labels.x_name} [{labels.x_unit}] -> {labels.y_name} "
+                f"[{labels.y_unit}] ({labels.extrapolation}, {labels.symmetry}), expected "
+                f"{spec.x_name} [{spec.x_unit}] -> {spec.y_name} [{spec.y_unit}] "
+                f"({spec.extrapolation}, {spec.symmetry})"
+            )
+        x: object = value.x
+        y: object = value.y
+    elif isinstance(value, Mapping):
+        for key in value:
+            if key not in ("x", "y"):
+                raise ParameterError(
+                    f"{path}.{key}: unknown key (a table has 'x' = {spec.x_name} [{spec.x_unit}] "
+                    f"and 'y' = {spec.y_name} [{spec.y_unit}]){_suggest(str(key), ('x', 'y'))}"
+                )
+        for key in ("x", "y"):
+            if key not in value:
+                raise ParameterError(f"{path}.{key}: missing table column")
+        x, y = value["x"], value["y"]
+    else:
+        raise ParameterError(
+            f"{path} = {_fmt(value)}: must be a table {{ x = [...], y = [...] }} "
+            f"({spec.x_name} [{spec.x_unit}] -> {spec.y_name} [{spec.y_unit}])"
+        )
+    xs, ys = _validate_xy(path, x, y, spec.x_name, spec.y_name)
+    return Table(xs, ys, *spec)
+
+
+# --------------------------------------------------------------------------------------------------
+# field metadata
+# --------------------------------------------------------------------------------------------------
+
+_NO_DEFAULT: Any = dataclasses.MISSING
+
+
+def _param(
+    unit: str,
+    frame: str,
+    description: str,
+    *,
+    min: float | None = None,
+    max: float | None = None,
+    min_inclusive: bool = True,
+    max_inclusive: bool = True,
+    kind: str = "float",
+    table: _TableSpec | None = None,
+    choices: tuple[str, ...] | None = None,
+    default: Any = _NO_DEFAULT,
+) -> Any:
+    """A dataclass field with the metadata described in the module docstring."""
+    if frame not in FRAMES:
+        raise AssertionError(f"bad frame {frame!r}")
+    metadata = {
+        "unit": unit,
+        "frame": frame,
+        "description": description,
+        "min": min,
+        "max": max,
+        "min_inclusive": min_inclusive,
+        "max_inclusive": max_inclusive,
+        "kind": kind,
+        "table": table,
+        "choices": choices,
+        "optional": default is not _NO_DEFAULT,
+        "default": None if default is _NO_DEFAULT else default,
+    }
+    if default is _NO_DEFAULT:
+        return field(metadata=metadata)
+    return field(default=default, metadata=metadata)
+
+
+def _static_ratio(what: str) -> Any:
+    return _param(
+        "-",
+        "-",
+        f"static/kinetic ratio of the {what} Coulomb friction (breakaway / sliding capacity); "
+        "1.0 is the paper's single k sgn() value",
+        min=1.0,
+        max=3.0,
+        default=1.0,
+    )
+
+
+def _coerce_field(path: str, value: object, md: Mapping[str, Any]) -> object:
+    kind = md["kind"]
+    if kind == "float":
+        x = _to_float(path, value)
+        _check_bounds(path, x, md)
+        return x
+    if kind == "floats":
+        xs = _to_float_tuple(path, value)
+        if len(xs) == 0:
+            raise ParameterError(f"{path} = []: needs at least one value")
+        for i, xi in enumerate(xs):
+            _check_bounds(f"{path}[{i}]", xi, md)
+        return xs
+    if kind == "choice":
+        if value not in md["choices"] or not isinstance(value, str):
+            raise ParameterError(
+                f"{path} = {_fmt(value)}: must be one of {', '.join(map(repr, md['choices']))}"
+                f"{_suggest(str(value), md['choices'])}"
+            )
+        return value
+    if kind == "table":
+        if value is None and md["optional"]:
+            return None
+        return _coerce_table(path, value, md["table"])
+    raise AssertionError(kind)  # pragma: no cover
+
+
+class _Section:
+    """Base of the parameter sections: coerces and validates every field after ``__init__``."""
+
+    __slots__ = ()
+    _section: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for f in fields(cast(Any, self)):
+            value = getattr(self, f.name)
+            coerced = _coerce_field(f"{self._section}.{f.name}", value, f.metadata)
+            if coerced is not value:
+                object.__setattr__(self, f.name, coerced)
+        self._check()
+
+    def _check(self) -> None:
+        """Cross-field checks of the section (overridden)."""
+
+
+# --------------------------------------------------------------------------------------------------
+# sections
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class EngineParams(_Section):
+    """Engine: ``C_G = K theta / (1 + tau_p s)``, ``C_1 = C_G - b1 omega1 - c1 sgn(omega1)``."""
+
+    _section: ClassVar[str] = "engine"
+
+    J1: float = _param(
+        "kg m^2", "engine", "engine + flywheel inertia", min=0.0, min_inclusive=False
+    )
+    K: float = _param(
+        "N m",
+        "engine",
+        "generated torque per unit throttle theta in [0, 1] (torque_model 'linear')",
+        min=0.0,
+        min_inclusive=False,
+    )
+    tau_p: float = _param(
+        "s", "-", "time constant of the first-order engine lag", min=0.0, min_inclusive=False
+    )
+    b1: float = _param(
+        "N m s/rad", "engine", "viscous engine friction (linear part of b1(omega1))", min=0.0
+    )
+    c1: float = _param(
+        "N m", "engine", "Coulomb engine friction (constant part of b1(omega1))", min=0.0
+    )
+    static_ratio: float = _static_ratio("engine")
+    torque_model: str = _param(
+        "-",
+        "-",
+        "generated torque model: 'linear' = K theta (the paper), 'map' = theta C_max(omega1)",
+        kind="choice",
+        choices=("linear", "map"),
+    )
+    full_load_curve: Table | None = _param(
+        "N m",
+        "engine",
+        "full-load torque C_max [N m] versus engine speed omega1 [rad/s]; clamped outside the "
+        "knots; required if torque_model = 'map'",
+        kind="table",
+        table=_FULL_LOAD_SPEC,
+        default=None,
+    )
+
+    def _check(self) -> None:
+        if self.torque_model == "map" and self.full_load_curve is None:
+            raise ParameterError(
+                "engine.full_load_curve = None: required when engine.torque_model = 'map'"
+            )
+        if self.full_load_curve is not None:
+            for xi, yi in zip(self.full_load_curve.x, self.full_load_curve.y, strict=True):
+                if yi < 0.0:
+                    raise ParameterError(
+                        f"engine.full_load_curve: C_max must be >= 0, but "
+                        f"C_max({_fmt(xi)})={_fmt(yi)}"
+                    )
+
+
+_FLAT_MU = Table((0.0,), (1.0,), *_MU_SPEC)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ClutchParams(_Section):
+    """Dry clutch: disc inertia, capacity ``k12(x_c)`` and slip dependence of the friction."""
+
+    _section: ClassVar[str] = "clutch"
+
+    J2: float = _param(
+        "kg m^2", "primary", "clutch disc (damper input) inertia", min=0.0, min_inclusive=False
+    )
+    b2: float = _param("N m s/rad", "primary", "viscous friction of the clutch disc", min=0.0)
+    k12_max: float = _param(
+        "N m",
+        "primary",
+        "maximum (fully engaged) clutch torque capacity",
+        min=0.0,
+        min_inclusive=False,
+    )
+    pedal_map: Table = _param(
+        "N m",
+        "primary",
+        "clutch capacity k12 [N m] versus actuator/pedal position x_c [m]; non-increasing "
+        "(larger x_c = clutch more open); clamped outside the knots",
+        kind="table",
+        table=_PEDAL_SPEC,
+    )
+    static_ratio: float = _static_ratio("clutch")
+    mu_table: Table = _param(
+        "-",
+        "-",
+        "friction coefficient ratio mu(slip)/mu(0) [-] versus slip speed |omega1 - omega2| "
+        "[rad/s] (evaluated at |slip|, clamped beyond the last knot); starts at (0, 1)",
+        kind="table",
+        table=_MU_SPEC,
+        default=_FLAT_MU,
+    )
+
+    def _check(self) -> None:
+        pm = self.pedal_map
+        for xi, yi in zip(pm.x, pm.y, strict=True):
+            if yi < 0.0:
+                raise ParameterError(
+                    f"clutch.pedal_map: k12 must be >= 0, but k12({_fmt(xi)})={_fmt(yi)}"
+                )
+            if yi > self.k12_max:
+                raise ParameterError(
+                    f"clutch.pedal_map: k12 must be <= clutch.k12_max = {_fmt(self.k12_max)}, "
+                    f"but k12({_fmt(xi)})={_fmt(yi)}"
+                )
+        for i in range(1, len(pm.x)):
+            if pm.y[i] > pm.y[i - 1]:
+                raise ParameterError(
+                    f"clutch.pedal_map: k12 must be non-increasing in x_c, but "
+                    f"k12({_fmt(pm.x[i - 1])})={_fmt(pm.y[i - 1])} < "
+                    f"k12({_fmt(pm.x[i])})={_fmt(pm.y[i])}"
+                )
+        mu = self.mu_table
+        if mu.x[0] != 0.0:
+            raise ParameterError(
+                f"clutch.mu_table: the first slip speed must be 0.0, got x[0]={_fmt(mu.x[0])}"
+            )
+        if mu.y[0] != 1.0:
+            raise ParameterError(
+                f"clutch.mu_table: mu(0)/mu(0) must be 1.0, got y[0]={_fmt(mu.y[0])}"
+            )
+        for xi, yi in zip(mu.x, mu.y, strict=True):
+            if yi <= 0.0:
+                raise ParameterError(
+                    f"clutch.mu_table: mu ratio must be > 0, but mu_ratio({_fmt(xi)})={_fmt(yi)}"
+                )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DamperParams(_Section):
+    """Torsional damper between clutch disc and primary shaft (spring ``phi_e`` + friction k23)."""
+
+    _section: ClassVar[str] = "damper"
+
+    J3: float = _param(
+        "kg m^2", "primary", "primary shaft + gearbox input inertia", min=0.0, min_inclusive=False
+    )
+    b3: float = _param("N m s/rad", "primary", "viscous friction of the primary shaft", min=0.0)
+    k23: float = _param("N m", "primary", "damper hysteresis (Coulomb) friction torque", min=0.0)
+    static_ratio: float = _static_ratio("damper hysteresis")
+    spring: Table = _param(
+        "N m",
+        "primary",
+        "damper spring torque phi_e [N m] versus twist theta_d = theta2 - theta3 [rad], given for "
+        "theta_d >= 0 and extended as an odd function; beyond the last knot it is extrapolated "
+        "LINEARLY with the last segment's slope (the stop stiffness)",
+        kind="table",
+        table=_SPRING_SPEC,
+    )
+
+    def _check(self) -> None:
+        sp = self.spring
+        if len(sp.x) < 2:
+            raise ParameterError(
+                f"damper.spring: needs at least 2 knots (0, 0) and one more, got x = {sp.x}"
+            )
+        if sp.x[0] != 0.0 or sp.y[0] != 0.0:
+            raise ParameterError(
+                f"damper.spring: must start at theta_d = 0 with phi_e = 0, got "
+                f"phi_e({_fmt(sp.x[0])})={_fmt(sp.y[0])}"
+            )
+        for i in range(1, len(sp.y)):
+            if not sp.y[i] > sp.y[i - 1]:
+                raise ParameterError(
+                    f"damper.spring: phi_e must be strictly increasing, but "
+                    f"phi_e({_fmt(sp.x[i])})={_fmt(sp.y[i])} <= "
+                    f"phi_e({_fmt(sp.x[i - 1])})={_fmt(sp.y[i - 1])}"
+                )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GearboxParams(_Section):
+    """Gearbox and differential: ratios, secondary inertia, mesh stiffness and backlash."""
+
+    _section: ClassVar[str] = "gearbox"
+
+    gear_ratios: tuple[float, ...] = _param(
+        "-",
+        "-",
+        "gearbox ratios tau_r = omega3 / omega_sec of gears 1, 2, ...",
+        kind="floats",
+        min=0.0,
+        min_inclusive=False,
+    )
+    D_c: float = _param(
+        "-", "-", "final drive ratio D_c = omega_sec / omega4", min=0.0, min_inclusive=False
+    )
+    J4: float = _param(
+        "kg m^2",
+        "secondary",
+        "secondary shaft + differential inertia (J25 uses J4 / tau_r^2)",
+        min=0.0,
+        min_inclusive=False,
+    )
+    b4: float = _param("N m s/rad", "secondary", "viscous friction of the differential", min=0.0)
+    h34: float = _param("N m/rad", "primary", "gear teeth stiffness", min=0.0, min_inclusive=False)
+    b34: float = _param("N m s/rad", "primary", "relative (mesh) damping of the gearbox", min=0.0)
+    g34_wheel: float = _param(
+        "rad",
+        "wheel",
+        "half backlash of the whole driveline lumped at the gear mesh, stored in the wheel frame "
+        "(primary-frame value: g34_primary(gear) = g34_wheel * tau_r * D_c)",
+        min=0.0,
+    )
+
+    @property
+    def n_gears(self) -> int:
+        """Number of forward gears [-]."""
+        return len(self.gear_ratios)
+
+    def _gear_index(self, gear: int) -> int:
+        n = len(self.gear_ratios)
+        if isinstance(gear, bool) or not isinstance(gear, int | np.integer) or not 1 <= gear <= n:
+            raise ValueError(f"gear = {gear!r}: must be an integer gear number in 1..{n}")
+        return int(gear) - 1
+
+    def tau_r(self, gear: int) -> float:
+        """Gearbox ratio tau_r = omega3 / omega_sec [-] of ``gear`` (1-based)."""
+        return self.gear_ratios[self._gear_index(gear)]
+
+    def tau_t(self, gear: int) -> float:
+        """Total ratio tau_t = tau_r * D_c = omega3 / omega4 [-] of ``gear`` (1-based)."""
+        return self.tau_r(gear) * self.D_c
+
+    def g34_primary(self, gear: int) -> float:
+        """Half backlash referred to the primary shaft [rad]: g34_wheel * tau_t(gear)."""
+        return self.g34_wheel * self.tau_t(gear)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DrivelineParams(_Section):
+    """Half-shafts, tyres/hubs and wheels (wheel frame, omega4 / omega5)."""
+
+    _section: ClassVar[str] = "driveline"
+
+    h45: float = _param(
+        "N m/rad",
+        "wheel",
+        "half-shaft torsional stiffness (both shafts)",
+        min=0.0,
+        min_inclusive=False,
+    )
+    b45: float = _param("N m s/rad", "wheel", "half-shaft damping", min=0.0)
+    h56: float = _param(
+        "N m/rad", "wheel", "tyre/hub torsional stiffness", min=0.0, min_inclusive=False
+    )
+    b56: float = _param("N m s/rad", "wheel", "tyre/hub damping", min=0.0, min_inclusive=False)
+    J5: float = _param(
+        "kg m^2", "wheel", "total inertia of the wheels and hubs", min=0.0, min_inclusive=False
+    )
+    b5: float = _param(
+        "N m s/rad", "wheel", "viscous friction of axles and wheels", min=0.0, default=0.0
+    )
+    tread_fraction: float = _param(
+        "-",
+        "-",
+        "fraction of J5 outboard of the tyre compliance h56 (tyre tread ring, grips or slips on "
+        "the road)",
+        min=0.0,
+        max=1.0,
+        min_inclusive=False,
+        max_inclusive=False,
+    )
+    R_p: float = _param("m", "wheel", "wheel (rolling) radius", min=0.0, min_inclusive=False)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VehicleParams(_Section):
+    """Vehicle body: mass, road loads and tyre-road friction."""
+
+    _section: ClassVar[str] = "vehicle"
+
+    M_v: float = _param("kg", "vehicle", "overall vehicle mass", min=0.0, min_inclusive=False)
+    C_x: float = _param("-", "vehicle", "aerodynamic drag coefficient", min=0.0)
+    S: float = _param("m^2", "vehicle", "frontal (transverse) area", min=0.0)
+    rho_a: float = _param("kg/m^3", "vehicle", "air density", min=0.0)
+    f_r: float = _param(
+        "-",
+        "vehicle",
+        "rolling resistance coefficient (k_v = f_r M_v g cos(alpha))",
+        min=0.0,
+        max=1.0,
+        max_inclusive=False,
+    )
+    b_v: float = _param("N s/m", "vehicle", "viscous vehicle friction", min=0.0)
+    mu_tyre: float = _param(
+        "-", "vehicle", "tyre-road friction coefficient", min=0.0, max=2.0, min_inclusive=False
+    )
+    drive_axle_load_fraction: float = _param(
+        "-",
+        "vehicle",
+        "fraction of the vehicle weight on the driven axle",
+        min=0.0,
+        max=1.0,
+        min_inclusive=False,
+    )
+    rolling_static_ratio: float = _static_ratio("rolling resistance")
+    tyre_static_ratio: float = _static_ratio("tyre-road")
+
+    def k_v(self, alpha: FloatOrArray = 0.0) -> FloatOrArray:
+        """Rolling resistance force k_v = f_r M_v g cos(alpha) [N] on slope ``alpha`` [rad]."""
+        return self.f_r * self.M_v * GRAVITY * np.cos(alpha)
+
+    def k_w(self, alpha: FloatOrArray = 0.0) -> FloatOrArray:
+        """Tyre-road Coulomb limit k_w = mu_tyre F_z,drive cos(alpha) [N] on slope ``alpha`` [rad].
+
+        F_z,drive = drive_axle_load_fraction * M_v * g.
+        """
+        fz = self.drive_axle_load_fraction * self.M_v * GRAVITY
+        return self.mu_tyre * fz * np.cos(alpha)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BrakeParams(_Section):
+    """Service brake (e.g. hill hold)."""
+
+    _section: ClassVar[str] = "brake"
+
+    capacity_max: float = _param(
+        "N m", "wheel", "maximum service-brake torque at the wheels (all wheels)", min=0.0
+    )
+    static_ratio: float = _static_ratio("brake")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ActuatorParams(_Section):
+    """Clutch actuator: ``X_C/X_R = omega_a^2 / (s^2 + 2 delta_a omega_a s + omega_a^2)``."""
+
+    _section: ClassVar[str] = "actuator"
+
+    omega_a: float = _param(
+        "rad/s", "-", "natural frequency of the actuator", min=0.0, min_inclusive=False
+    )
+    delta_a: float = _param("-", "-", "damping ratio of the actuator", min=0.0, min_inclusive=False)
+    x_min: float = _param("m", "-", "lower stroke limit of the actuator position x_c")
+    x_max: float = _param("m", "-", "upper stroke limit of the actuator position x_c")
+
+    def _check(self) -> None:
+        if not self.x_max > self.x_min:
+            raise ParameterError(
+                f"actuator.x_max = {_fmt(self.x_max)}: must be > actuator.x_min = "
+                f"{_fmt(self.x_min)} [m]"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Law6Params(_Section):
+    """The paper's control law (6): ``x_r = x_r0 + k_r (omega_r - omega1) sgn(omega1 - omega3)``."""
+
+    _section: ClassVar[str] = "law6"
+
+    x_r0: float = _param(
+        "m", "-", "actuator position at zero speed error (within the actuator stroke)"
+    )
+    k_r: float = _param(
+        "m s/rad",
+        "-",
+        "gain from engine-speed error to position reference",
+        min=0.0,
+        min_inclusive=False,
+    )
+
+
+_SECTIONS: dict[str, type[_Section]] = {
+    "engine": EngineParams,
+    "clutch": ClutchParams,
+    "damper": DamperParams,
+    "gearbox": GearboxParams,
+    "driveline": DrivelineParams,
+    "vehicle": VehicleParams,
+    "brake": BrakeParams,
+    "actuator": ActuatorParams,
+    "law6": Law6Params,
+}
+
+_FIELD_META: dict[str, Mapping[str, Any]] = {
+    f"{s}.{f.name}": f.metadata for s, cls in _SECTIONS.items() for f in fields(cast(Any, cls))
+}
+_FIELD_ORDER: dict[str, int] = {path: i for i, path in enumerate(_FIELD_META)}
+
+
+def field_paths() -> list[str]:
+    """All dotted field paths (``"engine.J1"``, ...) in declaration order."""
+    return list(_FIELD_META)
+
+
+def field_info(path: str) -> dict[str, Any]:
+    """Metadata of the field at dotted ``path``, e.g. ``field_info("engine.J1")``.
+
+    Returns a dict with ``unit``, ``frame``, ``description``, ``min``, ``max`` (``None`` =
+    unbounded), ``min_inclusive``, ``max_inclusive``, ``kind`` (``"float"``, ``"floats"``,
+    ``"table"``, ``"choice"``), ``choices``, ``optional`` (may be omitted in a file) and
+    ``default`` (its value then). For tables, ``unit`` is the unit of ``y`` and ``x_name``,
+    ``x_unit``, ``y_name``, ``y_unit``, ``extrapolation``, ``symmetry`` are added.
+    """
+    try:
+        md = _FIELD_META[path]
+    except KeyError:
+        raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}") from None
+    info = {k: v for k, v in md.items() if k != "table"}
+    if md["table"] is not None:
+        info.update(md["table"]._asdict())
+    return info
+
+
+def _canonical_provenance(value: object) -> tuple[tuple[str, str], ...]:
+    if isinstance(value, Mapping):
+        items = list(value.items())
+    elif isinstance(value, Iterable) and not isinstance(value, str | bytes):
+        items = []
+        for item in value:
+            if not (isinstance(item, tuple | list) and len(item) == 2):
+                raise ParameterError(
+                    f"provenance: entries must be (field path, text) pairs, got {_fmt(item)}"
+                )
+            items.append((item[0], item[1]))
+    else:
+        raise ParameterError(f"provenance = {_fmt(value)}: must be a mapping field path -> text")
+    seen: dict[str, str] = {}
+    for key, text in items:
+        if not isinstance(key, str) or key not in _FIELD_META:
+            raise ParameterError(
+                f"provenance.{key}: {key!r} names no parameter{_suggest(str(key), _FIELD_META)}"
+            )
+        if not isinstance(text, str):
+            raise ParameterError(f"provenance.{key} = {_fmt(text)}: must be a str")
+        if key in seen:
+            raise ParameterError(f"provenance.{key}: given twice")
+        seen[key] = text
+    return tuple(sorted(seen.items(), key=lambda kv: _FIELD_ORDER[kv[0]]))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DrivetrainParams:
+    """All parameters of the drivetrain model, one immutable section per component.
+
+    ``provenance`` holds ``(dotted field path, source text)`` pairs (stored in field order; a
+    mapping is accepted and converted). Use :meth:`replace` to derive a modified, validated copy.
+    """
+
+    name: str
+    description: str
+    engine: EngineParams
+    clutch: ClutchParams
+    damper: DamperParams
+    gearbox: GearboxParams
+    driveline: DrivelineParams
+    vehicle: VehicleParams
+    brake: BrakeParams
+    actuator: ActuatorParams
+    law6: Law6Params
+    provenance: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self) -> None:
+        for key in ("name", "description"):
+            value = getattr(self, key)
+            if not isinstance(value, str):
+                raise ParameterError(f"meta.{key} = {_fmt(value)}: must be a str")
+        if not self.name.strip():
+            raise ParameterError("meta.name = '': must not be empty")
+        for key, cls in _SECTIONS.items():
+            value = getattr(self, key)
+            if not isinstance(value, cls):
+                raise ParameterError(
+                    f"{key} = {_fmt(value)}: must be a {cls.__name__}, not {type(value).__name__}"
+                )
+        object.__setattr__(self, "provenance", _canonical_provenance(self.provenance))
+        act, x_r0 = self.actuator, self.law6.x_r0
+        if not act.x_min <= x_r0 <= act.x_max:
+            raise ParameterError(
+                f"law6.x_r0 = {_fmt(x_r0)}: must lie within the actuator stroke "
+                f"[{_fmt(act.x_min)}, {_fmt(act.x_max)}] [m]"
+            )
+
+    def provenance_dict(self) -> dict[str, str]:
+        """The provenance as a dict ``{dotted field path: source text}``."""
+        return dict(self.provenance)
+
+    def get(self, path: str) -> Any:
+        """The value of the field at dotted ``path`` (e.g. ``"clutch.k12_max"``; SI units)."""
+        if path not in _FIELD_META:
+            raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}")
+        section, _, name = path.partition(".")
+        return getattr(getattr(self, section), name)
+
+    def replace(self, **changes: Any) -> DrivetrainParams:
+        """A new, validated set with fields replaced by dotted path.
+
+        Example: ``p.replace(**{"clutch.k12_max": 300.0, "name": "strong clutch"})``. Keys are
+        dotted field paths, top-level field names (``name``, ``description``, ``provenance``) or
+        whole sections. Tables may be given as :class:`Table` or ``{"x": [...], "y": [...]}``.
+        """
+        top: dict[str, Any] = {}
+        per_section: dict[str, dict[str, Any]] = {}
+        top_names = [f.name for f in fields(self)]
+        for path, value in changes.items():
+            section, dot, name = path.partition(".")
+            if not dot:
+                if path not in top_names:
+                    raise ParameterError(
+                        f"{path}: unknown parameter{_suggest(path, [*top_names, *_FIELD_META])}"
+                    )
+                top[path] = value
+            elif path not in _FIELD_META:
+                raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}")
+            else:
+                per_section.setdefault(section, {})[name] = value
+        for section, section_changes in per_section.items():
+            base = top.get(section, getattr(self, section))
+            top[section] = dataclasses.replace(base, **section_changes)
+        return dataclasses.replace(self, **top)
+
+    def with_values(self, changes: Mapping[str, Any]) -> DrivetrainParams:
+        """Same as :meth:`replace` with a mapping ``{dotted path: value}``."""
+        return self.replace(**dict(changes))
+
+
+# --------------------------------------------------------------------------------------------------
+# dict / TOML conversion
+# --------------------------------------------------------------------------------------------------
+
+
+def _plain(value: object) -> object:
+    if isinstance(value, Table):
+        return {"x": list(value.x), "y": list(value.y)}
+    if isinstance(value, tuple):
+        return list(value)
+    return value
+
+
+def params_to_dict(p: DrivetrainParams) -> dict[str, Any]:
+    """Convert ``p`` to plain Python data with the layout of a parameter file.
+
+    ``{"meta": {"name", "description"}, "engine": {...}, ..., "provenance": {path: text}}``; tables
+    become ``{"x": [...], "y": [...]}``, tuples become lists, fields set to ``None`` are left out.
+    """
+    out: dict[str, Any] = {"meta": {"name": p.name, "description": p.description}}
+    for key in _SECTIONS:
+        section = getattr(p, key)
+        out[key] = {
+            f.name: _plain(getattr(section, f.name))
+            for f in fields(section)
+            if getattr(section, f.name) is not None
+        }
+    out["provenance"] = p.provenance_dict()
+    return out
+
+
+def _mapping(path: str, value: object) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise ParameterError(f"{path} = {_fmt(value)}: must be a table (section)")
+    return value
+
+
+def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
+    """Build and validate :class:`DrivetrainParams` from the layout of :func:`params_to_dict`.
+
+    Unknown keys raise :class:`ParameterError` (with a suggestion); so do missing keys, except the
+    optional fields listed in the module docstring. ``provenance`` may be omitted.
+    """
+    data = _mapping("<parameters>", data)
+    allowed = ["meta", *_SECTIONS, "provenance"]
+    for key in data:
+        if key not in allowed:
+            raise ParameterError(f"{key}: unknown section{_suggest(str(key), allowed)}")
+    for key in ("meta", *_SECTIONS):
+        if key not in data:
+            raise ParameterError(f"{key}: missing section [{key}]")
+    meta = _mapping("meta", data["meta"])
+    for key in meta:
+        if key not in ("name", "description"):
+            raise ParameterError(
+                f"meta.{key}: unknown key{_suggest(str(key), ('name', 'description'))}"
+            )
+    for key in ("name", "description"):
+        if key not in meta:
+            raise ParameterError(f"meta.{key}: missing key")
+    sections: dict[str, Any] = {}
+    for key, cls in _SECTIONS.items():
+        raw = _mapping(key, data[key])
+        names = [f.name for f in fields(cast(Any, cls))]
+        for name in raw:
+            if name not in names:
+                raise ParameterError(f"{key}.{name}: unknown parameter{_suggest(str(name), names)}")
+        kwargs: dict[str, Any] = {}
+        for f in fields(cast(Any, cls)):
+            if f.name in raw:
+                kwargs[f.name] = raw[f.name]
+            elif not f.metadata["optional"]:
+                md = f.metadata
+                raise ParameterError(
+                    f"{key}.{f.name}: missing parameter ({md['description']} [{md['unit']}])"
+                )
+        sections[key] = cls(**kwargs)
+    return DrivetrainParams(
+        name=meta["name"],
+        description=meta["description"],
+        provenance=data.get("provenance", {}),
+        **sections,
+    )
+
+
+def available_parameter_sets() -> list[str]:
+    """Names of the built-in parameter sets (the stems of ``parameter_sets/*.toml``)."""
+    return sorted(p.stem for p in PARAMETER_SETS_DIR.glob("*.toml"))
+
+
+def _resolve_source(source: str | Path) -> Path:
+    if isinstance(source, Path):
+        return source
+    sets = available_parameter_sets()
+    if source in sets:
+        return PARAMETER_SETS_DIR / f"{source}.toml"
+    looks_like_path = source.endswith(".toml") or "/" in source or "\\" in source
+    if looks_like_path or Path(source).is_file():
+        return Path(source)
+    raise ValueError(
+        f"unknown parameter set {source!r}{_suggest(source, sets)} "
+        f"(available: {', '.join(sets) or 'none'}; or give a path to a .toml file)"
+    )
+
+
+def load_params(source: str | Path) -> DrivetrainParams:
+    """Load and validate a parameter set: a built-in set name (e.g. ``"passenger-car"``) or a path
+    to a TOML file. All values are SI (see :func:`field_info` for units and frames).
+
+    Raises :class:`ParameterError` for invalid, unknown or missing parameters (message suffixed with
+    the file), :class:`ValueError` for an unknown set name and :class:`FileNotFoundError` for a
+    missing file.
+    """
+    path = _resolve_source(source)
+    with path.open("rb") as fh:
+        try:
+            data = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise ParameterError(f"{path}: invalid TOML: {exc}") from None
+    try:
+        return params_from_dict(data)
+    except ParameterError as exc:
+        raise ParameterError(f"{exc} (in {path})") from None
+
+
+def save_params(params: DrivetrainParams, path: str | Path) -> Path:
+    """Write ``params`` to the TOML file ``path`` (SI units) and return the path.
+
+    ``load_params(save_params(p, path)) == p`` holds exactly (floats are written with ``repr``).
+    """
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    header = (
+        f"# drivetrain_ctrl parameter set {params.name!r}, written by save_params.\n"
+        "# SI units; units and frames of each field: drivetrain_ctrl.params.field_info().\n\n"
+    )
+    out.write_text(header + tomli_w.dumps(params_to_dict(params)), encoding="utf-8")
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def default_params() -> DrivetrainParams:
+    """The built-in ``"passenger-car"`` set (cached; the object is immutable)."""
+    return load_params("passenger-car")
