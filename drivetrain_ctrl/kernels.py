@@ -21,6 +21,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+#: compiled, cached; numpy error model (no Python exceptions on division: ~2x faster)
+jit = njit(cache=True, error_model="numpy")
+#: small helpers inlined into their callers (avoids copying ChainData on every call)
+jit_inline = njit(cache=True, error_model="numpy", inline="always")
+
 STUCK, SLIP_POS, SLIP_NEG, OPEN = 0, 1, 2, 3
 ARG_TWIST, ARG_SLIP, ARG_SPEED, ARG_INPUT = 0, 1, 2, 3
 
@@ -65,16 +70,48 @@ class ChainData(NamedTuple):
     nx: int
 
 
-@njit(cache=True)
+# Helpers take the arrays they need, not ChainData: passing the 33-array tuple into a helper costs
+# about 0.6 us per call in reference counting (measured with /tmp profiling, see benchmarks/).
+@jit_inline
+def _rel(f_kind, f_idx, ratio, f, x):  # type: ignore[no-untyped-def]
+    i = f_idx[f]
+    r = x[i]
+    if f_kind[f] == 0:
+        r = x[i] - ratio[i] * x[i + 1]
+    return r
+
+
+@jit_inline
+def _cap(f_scale, f_uidx, f_table, t_s, t_o, f, u, reg):  # type: ignore[no-untyped-def]
+    ui = f_uidx[f]
+    base = 1.0
+    if ui >= 0:
+        kt = f_table[f]
+        if kt < 0:
+            base = u[ui]
+        else:
+            r = reg[kt]
+            base = t_s[kt, r] * u[ui] + t_o[kt, r]
+    return f_scale[f] * base
+
+
+@jit_inline
+def _mu(f_mu, t_s, t_o, f, aw, reg):  # type: ignore[no-untyped-def]
+    k = f_mu[f]
+    r = 1.0
+    if k >= 0:
+        rr = reg[k]
+        r = t_s[k, rr] * aw + t_o[k, rr]
+    return r
+
+
+@jit_inline
 def rel_speed(D: ChainData, f: int, x: F64) -> float:
     """Relative speed of friction element ``f`` [rad/s or m/s] (upstream frame)."""
-    i = D.f_idx[f]
-    if D.f_kind[f] == 0:
-        return x[i] - D.ratio[i] * x[i + 1]
-    return x[i]
+    return _rel(D.f_kind, D.f_idx, D.ratio, f, x)
 
 
-@njit(cache=True)
+@jit_inline
 def table_arg(D: ChainData, k: int, x: F64, u: F64) -> float:
     """Argument of table ``k`` at state ``x`` and inputs ``u``."""
     kind = D.t_kind[k]
@@ -88,7 +125,7 @@ def table_arg(D: ChainData, k: int, x: F64, u: F64) -> float:
     return u[idx]
 
 
-@njit(cache=True)
+@jit_inline
 def table_region(D: ChainData, k: int, a: float) -> int:
     """Index of the affine piece of table ``k`` that contains ``a``."""
     r = 0
@@ -98,42 +135,31 @@ def table_region(D: ChainData, k: int, a: float) -> int:
     return r
 
 
-@njit(cache=True)
+@jit_inline
 def table_value(D: ChainData, k: int, r: int, a: float) -> float:
     return D.t_s[k, r] * a + D.t_o[k, r]
 
 
-@njit(cache=True)
+@jit
 def update_regions(D: ChainData, x: F64, u: F64, reg: I64) -> None:
     """Set every table's region from the current arguments (used at events)."""
     for k in range(D.t_nb.shape[0]):
         reg[k] = table_region(D, k, table_arg(D, k, x, u))
 
 
-@njit(cache=True)
+@jit_inline
 def capacity(D: ChainData, f: int, u: F64, reg: I64) -> float:
     """Kinetic capacity of friction element ``f`` at zero slip [N m or N]."""
-    ui = D.f_uidx[f]
-    if ui < 0:
-        base = 1.0
-    elif D.f_table[f] < 0:
-        base = u[ui]
-    else:
-        k = D.f_table[f]
-        base = table_value(D, k, reg[k], u[ui])
-    return D.f_scale[f] * base
+    return _cap(D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, f, u, reg)
 
 
-@njit(cache=True)
+@jit_inline
 def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
     """mu(|w|)/mu(0) of friction element ``f``."""
-    k = D.f_mu[f]
-    if k < 0:
-        return 1.0
-    return table_value(D, k, reg[k], abs(rel_speed(D, f, x)))
+    return _mu(D.f_mu, D.t_s, D.t_o, f, abs(_rel(D.f_kind, D.f_idx, D.ratio, f, x)), reg)
 
 
-@njit(cache=True)
+@jit_inline
 def _apply_coupling(D: ChainData, f_or_c: int, kind: int, T: float, tau: F64) -> None:
     if kind == 0:
         tau[f_or_c] -= T
@@ -142,11 +168,17 @@ def _apply_coupling(D: ChainData, f_or_c: int, kind: int, T: float, tau: F64) ->
         tau[f_or_c] -= T
 
 
-@njit(cache=True)
-def forces(D: ChainData, x: F64, u: F64, fm: I64, reg: I64) -> F64:
-    """Generalised torques on the bodies [N m or N], without the stuck (constraint) torques."""
+@jit_inline
+def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> None:
+    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques.
+
+    Hot path: written without helper calls (each call costs reference counting of its array
+    arguments, which made this function 10x slower; measured in benchmarks/bench_kernels.py).
+    """
     n = D.M.shape[0]
-    tau = np.empty(n)
+    t_s = D.t_s
+    t_o = D.t_o
+    ratio = D.ratio
     for i in range(n):
         w = x[i]
         t = -D.visc[i] * w - D.quad[i] * w * abs(w) + D.load[i]
@@ -156,26 +188,124 @@ def forces(D: ChainData, x: F64, u: F64, fm: I64, reg: I64) -> F64:
     for j in range(D.l_body.shape[0]):
         b = D.l_body[j]
         kt = D.l_table[j]
-        g = D.l_gain[j] if kt < 0 else D.l_gain[j] * table_value(D, kt, reg[kt], x[b])
+        g = D.l_gain[j]
+        if kt >= 0:
+            r = reg[kt]
+            g *= t_s[kt, r] * x[b] + t_o[kt, r]
         tau[b] += g * x[D.l_x[j]]
-    for c in range(D.ratio.shape[0]):
-        w = x[c] - D.ratio[c] * x[c + 1]
+    for c in range(ratio.shape[0]):
+        w = x[c] - ratio[c] * x[c + 1]
         T = D.damp[c] * w
         kt = D.c_table[c]
         if kt >= 0:
-            T += table_value(D, kt, reg[kt], x[D.c_q[c]])
+            r = reg[kt]
+            T += t_s[kt, r] * x[D.c_q[c]] + t_o[kt, r]
         tau[c] -= T
-        tau[c + 1] += D.ratio[c] * T
+        tau[c + 1] += ratio[c] * T
     for f in range(D.f_kind.shape[0]):
         m = fm[f]
         if m == SLIP_POS or m == SLIP_NEG:
-            s = 1.0 if m == SLIP_POS else -1.0
-            F = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s
-            _apply_coupling(D, D.f_idx[f], D.f_kind[f], F, tau)
+            i = D.f_idx[f]
+            coupled = D.f_kind[f] == 0
+            w = x[i] - ratio[i] * x[i + 1] if coupled else x[i]
+            ui = D.f_uidx[f]
+            F = D.f_scale[f]
+            if ui >= 0:
+                kt = D.f_table[f]
+                if kt < 0:
+                    F *= u[ui]
+                else:
+                    r = reg[kt]
+                    F *= t_s[kt, r] * u[ui] + t_o[kt, r]
+            kmu = D.f_mu[f]
+            if kmu >= 0:
+                r = reg[kmu]
+                F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
+            if m == SLIP_NEG:
+                F = -F
+            tau[i] -= F
+            if coupled:
+                tau[i + 1] += ratio[i] * F
+
+
+@jit
+def forces(D: ChainData, x: F64, u: F64, fm: I64, reg: I64) -> F64:
+    """Generalised torques on the bodies [N m or N], without the stuck (constraint) torques."""
+    tau = np.empty(D.M.shape[0])
+    forces_into(D, x, u, fm, reg, tau)
     return tau
 
 
-@njit(cache=True)
+@jit_inline
+def rhs_into(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, xdot: F64, tau: F64, pd: F64, energy: bool
+) -> float:
+    """Allocation-free state derivative (the simulator's hot path).
+
+    Writes ``xdot``; with ``energy`` also the dissipated powers ``pd`` (layout of :func:`powers`,
+    stuck elements 0 since their relative speed is held at zero) and returns the supplied power.
+    """
+    n = D.M.shape[0]
+    m = D.ratio.shape[0]
+    forces_into(D, x, u, fm, reg, tau)
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += P[i, k] * tau[k]
+        xdot[i] = acc
+        if D.b_pos[i] >= 0:
+            xdot[D.b_pos[i]] = x[i]
+    for c in range(m):
+        if D.c_q[c] >= 0:
+            xdot[D.c_q[c]] = x[c] - D.ratio[c] * x[c + 1]
+    p_in = 0.0
+    for j in range(D.l_body.shape[0]):
+        xdot[D.l_x[j]] = (u[D.l_uidx[j]] - x[D.l_x[j]]) / D.l_tau[j]
+    if not energy:
+        return 0.0
+    for i in range(n):
+        w = x[i]
+        pd[i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
+        if D.b_uidx[i] >= 0:
+            p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
+    for j in range(D.l_body.shape[0]):
+        b = D.l_body[j]
+        kt = D.l_table[j]
+        g = D.l_gain[j]
+        if kt >= 0:
+            r = reg[kt]
+            g *= D.t_s[kt, r] * x[b] + D.t_o[kt, r]
+        p_in += g * x[D.l_x[j]] * x[b]
+    for c in range(m):
+        w = x[c] - D.ratio[c] * x[c + 1]
+        pd[n + c] = D.damp[c] * w * w
+    t_s = D.t_s
+    t_o = D.t_o
+    for f in range(D.f_kind.shape[0]):
+        mf = fm[f]
+        pdf = 0.0
+        if mf == SLIP_POS or mf == SLIP_NEG:
+            i = D.f_idx[f]
+            w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
+            ui = D.f_uidx[f]
+            F = D.f_scale[f]
+            if ui >= 0:
+                kt = D.f_table[f]
+                if kt < 0:
+                    F *= u[ui]
+                else:
+                    r = reg[kt]
+                    F *= t_s[kt, r] * u[ui] + t_o[kt, r]
+            kmu = D.f_mu[f]
+            if kmu >= 0:
+                r = reg[kmu]
+                F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
+            pdf = F * abs(w)
+        pd[n + m + f] = pdf
+    return p_in
+
+
+@jit
 def constraint_rows(D: ChainData, fm: I64, which: I64) -> F64:
     """Rows ``G`` (one per element with ``which[f]`` true) with ``G omega`` = relative speeds."""
     n = D.M.shape[0]
@@ -197,7 +327,48 @@ def constraint_rows(D: ChainData, fm: I64, which: I64) -> F64:
     return G
 
 
-@njit(cache=True)
+@jit
+def _solve_small(S: F64, R: F64) -> F64:
+    """Solve ``S X = R`` for a small symmetric positive semi-definite ``S``.
+
+    Gaussian elimination with partial pivoting; if ``S`` is singular (redundant constraints, e.g.
+    two ground frictions on rigidly joined bodies) the least-norm pseudo-inverse solution.
+    """
+    k = S.shape[0]
+    A = S.copy()
+    X = R.copy()
+    scale = 0.0
+    for i in range(k):
+        scale = max(scale, abs(A[i, i]))
+    for c in range(k):
+        p = c
+        for r in range(c + 1, k):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if abs(A[p, c]) <= 1e-12 * scale:
+            return np.linalg.pinv(S) @ R
+        if p != c:
+            for j in range(k):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            for j in range(X.shape[1]):
+                X[c, j], X[p, j] = X[p, j], X[c, j]
+        for r in range(c + 1, k):
+            fct = A[r, c] / A[c, c]
+            if fct != 0.0:
+                for j in range(c, k):
+                    A[r, j] -= fct * A[c, j]
+                for j in range(X.shape[1]):
+                    X[r, j] -= fct * X[c, j]
+    for c in range(k - 1, -1, -1):
+        for j in range(X.shape[1]):
+            acc = X[c, j]
+            for q in range(c + 1, k):
+                acc -= A[c, q] * X[q, j]
+            X[c, j] = acc / A[c, c]
+    return X
+
+
+@jit
 def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     """``P`` (n, n) and ``Lam`` (nf, n): accelerations ``P tau``, stuck torques ``Lam tau``."""
     n = D.M.shape[0]
@@ -211,10 +382,9 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     G = constraint_rows(D, fm, which)
     if G.shape[0] == 0:
         return Minv, Lam
-    S = G @ Minv @ G.T
-    Sp = np.linalg.pinv(S)
-    L = Sp @ G @ Minv
-    P = Minv - Minv @ G.T @ L
+    GM = G @ Minv
+    L = _solve_small(GM @ G.T, GM)
+    P = Minv - GM.T @ L
     r = 0
     for f in range(nf):
         if which[f]:
@@ -223,56 +393,46 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     return P, Lam
 
 
-@njit(cache=True)
+@jit
 def project(D: ChainData, x: F64, fm: I64, which: I64) -> None:
     """Momentum-preserving projection of the speeds onto ``w_f = 0`` for ``which[f]``."""
     G = constraint_rows(D, fm, which)
     if G.shape[0] == 0:
         return
     n = D.M.shape[0]
-    Minv = np.diag(1.0 / D.M)
-    w = G @ x[:n]
-    corr = Minv @ G.T @ (np.linalg.pinv(G @ Minv @ G.T) @ w)
+    GM = G @ np.diag(1.0 / D.M)
+    w = np.empty((G.shape[0], 1))
+    w[:, 0] = G @ x[:n]
+    corr = GM.T @ _solve_small(GM @ G.T, w)
     for i in range(n):
-        x[i] -= corr[i]
+        x[i] -= corr[i, 0]
     # exact zeros on the constrained relative speeds (round-off)
     for f in range(fm.shape[0]):
         if which[f] and D.f_kind[f] == 1:
             x[D.f_idx[f]] = 0.0
 
 
-@njit(cache=True)
+@jit
 def rhs(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, xdot: F64) -> None:
     """Time derivative of the state in the current mode (``P`` from :func:`mode_matrices`)."""
-    n = D.M.shape[0]
-    tau = forces(D, x, u, fm, reg)
-    a = P @ tau
-    for i in range(n):
-        xdot[i] = a[i]
-        if D.b_pos[i] >= 0:
-            xdot[D.b_pos[i]] = x[i]
-    for c in range(D.ratio.shape[0]):
-        if D.c_q[c] >= 0:
-            xdot[D.c_q[c]] = x[c] - D.ratio[c] * x[c + 1]
-    for j in range(D.l_body.shape[0]):
-        xdot[D.l_x[j]] = (u[D.l_uidx[j]] - x[D.l_x[j]]) / D.l_tau[j]
+    tau = np.empty(D.M.shape[0])
+    pd = np.empty(0)
+    rhs_into(D, x, u, fm, reg, P, xdot, tau, pd, False)
 
 
-@njit(cache=True)
+@jit
 def stuck_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> F64:
     """Friction torque [N m or N] each stuck element must carry (0 for the others)."""
     return Lam @ forces(D, x, u, fm, reg)
 
 
-@njit(cache=True)
+@jit
 def n_guards(D: ChainData) -> int:
     return D.f_kind.shape[0] + 2 * D.t_nb.shape[0]
 
 
-@njit(cache=True)
-def guards(
-    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64
-) -> None:
+@jit
+def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) -> None:
     """Guard values (>= 0 while the mode holds) into ``g``.
 
     Layout: one per friction element (slip: ``s w``; stuck: static capacity - ``|lam|``;
@@ -280,33 +440,63 @@ def guards(
     current region; ``+inf`` where there is none).
     """
     nf = D.f_kind.shape[0]
-    lam = Lam @ forces(D, x, u, fm, reg)
+    n = D.M.shape[0]
+    any_stuck = False
+    for f in range(nf):
+        if fm[f] == STUCK:
+            any_stuck = True
+    tau = np.empty(n)
+    if any_stuck:
+        forces_into(D, x, u, fm, reg, tau)
     for f in range(nf):
         m = fm[f]
-        cap = capacity(D, f, u, reg)
+        i = D.f_idx[f]
+        w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
+        ui = D.f_uidx[f]
+        cap = D.f_scale[f]
+        if ui >= 0:
+            kt = D.f_table[f]
+            if kt < 0:
+                cap *= u[ui]
+            else:
+                rr = reg[kt]
+                cap *= D.t_s[kt, rr] * u[ui] + D.t_o[kt, rr]
         if m == OPEN:
             g[f] = -cap
         elif m == STUCK:
-            g[f] = D.f_static[f] * cap - abs(lam[f])
+            lam = 0.0
+            for k in range(n):
+                lam += Lam[f, k] * tau[k]
+            g[f] = D.f_static[f] * cap - abs(lam)
         elif m == SLIP_POS:
-            g[f] = rel_speed(D, f, x)
+            g[f] = w
         else:
-            g[f] = -rel_speed(D, f, x)
+            g[f] = -w
     for k in range(D.t_nb.shape[0]):
         lo = nf + 2 * k
-        if D.t_kind[k] == ARG_SLIP:
-            m = fm[D.t_idx[k]]
+        kind = D.t_kind[k]
+        idx = D.t_idx[k]
+        if kind == ARG_SLIP:
+            m = fm[idx]
             if m != SLIP_POS and m != SLIP_NEG:
                 g[lo] = np.inf
                 g[lo + 1] = np.inf
                 continue
-        a = table_arg(D, k, x, u)
+        if kind == ARG_TWIST:
+            a = x[D.c_q[idx]]
+        elif kind == ARG_SLIP:
+            i = D.f_idx[idx]
+            a = abs(x[i] - D.ratio[i] * x[i + 1] if D.f_kind[idx] == 0 else x[i])
+        elif kind == ARG_SPEED:
+            a = x[idx]
+        else:
+            a = u[idx]
         r = reg[k]
         g[lo] = a - D.t_b[k, r - 1] if r > 0 else np.inf
         g[lo + 1] = D.t_b[k, r] - a if r < D.t_nb[k] else np.inf
 
 
-@njit(cache=True)
+@jit
 def _consistency(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64
 ) -> float:
@@ -333,7 +523,7 @@ def _consistency(
     return viol
 
 
-@njit(cache=True)
+@jit
 def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) -> int:
     """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
 
@@ -401,7 +591,7 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
     return -1
 
 
-@njit(cache=True)
+@jit
 def stored_energy(D: ChainData, x: F64) -> float:
     """Stored energy [J]: kinetic, elastic (integral of each spring law) and potential."""
     n = D.M.shape[0]
@@ -419,7 +609,7 @@ def stored_energy(D: ChainData, x: F64) -> float:
     return E
 
 
-@njit(cache=True)
+@jit
 def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[float, F64]:
     """Power supplied [W] and power dissipated per element [W].
 
@@ -455,7 +645,7 @@ def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[f
     return p_in, pd
 
 
-@njit(cache=True)
+@jit
 def jacobians(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, linear_only: bool
 ) -> tuple[F64, F64]:
@@ -545,7 +735,7 @@ def jacobians(
     return J, B
 
 
-@njit(cache=True)
+@jit
 def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> F64:
     """Total torque of each coupling [N m] (upstream frame): spring + damper + friction."""
     m = D.ratio.shape[0]

@@ -1,0 +1,340 @@
+"""Exact switching simulation of a chain model: options, runner and :class:`SimulationResult`.
+
+>>> from drivetrain_ctrl.params import default_params
+>>> from drivetrain_ctrl.drivetrain import full_model
+>>> from drivetrain_ctrl import signals as sg
+>>> from drivetrain_ctrl.simulate import simulate
+>>> dt = full_model(default_params())
+>>> x0 = dt.rigid_state(omega_engine=200.0, v_vehicle=0.0, throttle=0.5)
+>>> res = simulate(dt.model, x0, {"throttle": sg.constant(0.5),
+...                               "pedal": sg.ramp(0.2, 2.2, 0.11, 0.03),
+...                               "brake": sg.constant(0.0)}, t_end=3.0)
+>>> res.status
+'ok'
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import hybrid
+from . import kernels as K
+from .model import Mode, Model
+from .signals import Signal, pack_signals
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+__all__ = ["SimulationOptions", "SimulationResult", "Event", "ZenoError", "simulate"]
+
+F64 = NDArray[np.float64]
+
+
+class ZenoError(RuntimeError):
+    """Events accumulate (Zeno behaviour): the run was stopped."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SimulationOptions:
+    """Integrator settings (all keyword-only).
+
+    rtol, atol: local error tolerances (atol in state units); h_max [s]: largest step, so that no
+    stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s];
+    tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
+    energy: integrate supplied work and dissipated energies; zeno_count events within
+    zeno_window [s] stop the run (:class:`ZenoError`).
+    """
+
+    rtol: float = 1e-8
+    atol: float = 1e-9
+    h_max: float = 1e-3
+    h_init: float = 1e-5
+    tol_w: float = 1e-8
+    energy: bool = True
+    zeno_count: int = 50
+    zeno_window: float = 1e-6
+    max_events: int = 100_000
+    max_steps: int = 10_000_000
+
+    def __post_init__(self) -> None:
+        for name in ("rtol", "atol", "h_max", "h_init", "tol_w", "zeno_window"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"SimulationOptions.{name} = {v!r}: must be a finite number > 0")
+        for name in ("zeno_count", "max_events", "max_steps"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 2:
+                raise ValueError(f"SimulationOptions.{name} = {v!r}: must be an integer >= 2")
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """A mode change: time [s], element name, from-mode and to-mode names."""
+
+    t: float
+    element: str
+    from_mode: str
+    to_mode: str
+
+
+_STATUS = {
+    hybrid.OK: "ok",
+    hybrid.ZENO: "zeno",
+    hybrid.MAX_EVENTS: "max_events",
+    hybrid.MAX_STEPS: "max_steps",
+    hybrid.STEP_TOO_SMALL: "step_too_small",
+}
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Trajectory of a hybrid simulation.
+
+    ``t`` (N,) [s]; ``x`` (N, nx) states (units: ``model.state_units``); ``u`` (N, nu) inputs;
+    ``fm`` (N, nf) friction mode codes and ``reg`` (N, nt) table regions; ``events``;
+    ``work_in`` (N,) [J] supplied work; ``dissipated`` (N, k) [J] per element
+    (``model.power_names()``); ``stats`` (steps, rejected steps, nfev, wall time [s]).
+    """
+
+    model: Model
+    t: F64
+    x: F64
+    u: F64
+    fm: NDArray[np.int64]
+    reg: NDArray[np.int64]
+    events: tuple[Event, ...]
+    work_in: F64 | None
+    dissipated: F64 | None
+    status: str
+    stats: dict[str, float] = field(default_factory=dict)
+    extras: dict[str, Any] = field(default_factory=dict)
+
+    # -- access --------------------------------------------------------------------------------
+    def state(self, name: str) -> F64:
+        """Time series of state ``name`` (see ``model.state_names``)."""
+        return self.x[:, self.model.state_index(name)]
+
+    def mode_series(self, element: str) -> list[str]:
+        """Mode name of friction element or backlash ``element`` at every sample."""
+        m = self.model
+        for f, fi in enumerate(m.frictions):
+            if fi.name == element:
+                return [fi.mode_names[c] for c in self.fm[:, f]]
+        for k, ti in enumerate(m.tables):
+            if ti.name == element and ti.region_names is not None:
+                return [ti.region_names[r] for r in self.reg[:, k]]
+        raise KeyError(f"no moded element {element!r}")
+
+    def coupling_torques(self) -> F64:
+        """(N, m) torque of every coupling [N m] in its upstream frame (incl. stuck torques)."""
+        D = self.model.data
+        out = np.empty((self.t.shape[0], D.ratio.shape[0]))
+        for i in range(self.t.shape[0]):
+            _, Lam = K.mode_matrices(D, self.fm[i])
+            out[i] = K.coupling_torques(D, self.x[i], self.u[i], self.fm[i], self.reg[i], Lam)
+        return out
+
+    def stored_energy(self) -> F64:
+        """(N,) stored energy [J] evaluated from the state."""
+        return np.array([K.stored_energy(self.model.data, xi) for xi in self.x])
+
+    @property
+    def energy_residual_rel(self) -> float:
+        """``|dE_stored - W_in + sum(E_diss)| / max(W_in, max E_stored)`` at the end of the run."""
+        if self.work_in is None or self.dissipated is None:
+            raise ValueError("energy was not integrated (SimulationOptions(energy=False))")
+        E = self.stored_energy()
+        dE = E[-1] - E[0]
+        res = dE - self.work_in[-1] + float(np.sum(self.dissipated[-1]))
+        scale = max(abs(float(self.work_in[-1])), float(np.max(np.abs(E))), 1e-300)
+        return float(abs(res) / scale)
+
+    def lockup_time(self, element: str = "clutch", *, after: float = 0.0) -> float | None:
+        """Time [s] of the last slip -> stuck transition of ``element`` after which it stays
+        stuck to the end of the run (None if it never locks for good)."""
+        stuck_name = None
+        for fi in self.model.frictions:
+            if fi.name == element:
+                stuck_name = fi.mode_names[0]
+        if stuck_name is None:
+            raise KeyError(f"no friction element {element!r}")
+        series = self.mode_series(element)
+        if series[-1] != stuck_name:
+            return None
+        t_lock = None
+        for ev in self.events:
+            if ev.element == element and ev.to_mode == stuck_name and ev.t >= after:
+                t_lock = ev.t
+        if t_lock is None and series[0] == stuck_name:
+            return None
+        return t_lock
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """Samples as a pandas DataFrame; column names carry units, e.g. ``omega_engine [rad/s]``."""
+        import pandas as pd
+
+        cols: dict[str, Any] = {"t [s]": self.t}
+        for j, (nm, un) in enumerate(zip(self.model.state_names, self.model.state_units, strict=True)):
+            cols[f"{nm} [{un}]"] = self.x[:, j]
+        for j, nm in enumerate(self.model.input_names):
+            cols[f"input_{nm}"] = self.u[:, j]
+        T = self.coupling_torques()
+        for c, cp in enumerate(self.model.chain.couplings):
+            cols[f"T_{cp.name} [N m]"] = T[:, c]
+        for fi in self.model.frictions:
+            cols[f"mode_{fi.name}"] = self.mode_series(fi.name)
+        for ti in self.model.tables:
+            if ti.region_names is not None:
+                cols[f"mode_{ti.name}"] = self.mode_series(ti.name)
+        if self.work_in is not None and self.dissipated is not None:
+            cols["work_in [J]"] = self.work_in
+            cols["stored_energy [J]"] = self.stored_energy()
+            for j, nm in enumerate(self.model.power_names()):
+                cols[f"dissipated_{nm} [J]"] = self.dissipated[:, j]
+        return pd.DataFrame(cols)
+
+    def events_dataframe(self) -> pd.DataFrame:
+        """The event list as a DataFrame (``t [s]``, element, from_mode, to_mode)."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {
+                "t [s]": [e.t for e in self.events],
+                "element": [e.element for e in self.events],
+                "from_mode": [e.from_mode for e in self.events],
+                "to_mode": [e.to_mode for e in self.events],
+            }
+        )
+
+    def plot(self, path: str | None = None) -> Any:
+        """Overview figure (speeds, torques, modes); saved to ``path`` if given. Returns the figure."""
+        from .plotting import plot_simulation
+
+        return plot_simulation(self, path)
+
+
+def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
+    nf = len(model.frictions)
+    if el < nf:
+        fi = model.frictions[el]
+        return fi.name, fi.mode_names[code]
+    ti = model.tables[el - nf]
+    if ti.region_names is not None:
+        return ti.name, ti.region_names[code]
+    return ti.name, f"segment {code}"
+
+
+def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
+    unknown = set(inputs) - set(model.input_names)
+    if unknown:
+        raise KeyError(f"unknown input(s) {sorted(unknown)}; the model's inputs: {model.input_names}")
+    missing = [n for n in model.input_names if n not in inputs]
+    if missing:
+        raise KeyError(f"missing input signal(s) {missing}; the model's inputs: {model.input_names}")
+    out = []
+    for n in model.input_names:
+        s = inputs[n]
+        if not isinstance(s, Signal):
+            from .signals import constant
+
+            s = constant(float(s))
+        out.append(s)
+    return out
+
+
+def simulate(
+    model: Model,
+    x0: F64,
+    inputs: Mapping[str, Signal | float],
+    *,
+    t_end: float,
+    t0: float = 0.0,
+    options: SimulationOptions | None = None,
+    raise_on_zeno: bool = True,
+) -> SimulationResult:
+    """Simulate ``model`` from state ``x0`` at ``t0`` [s] to ``t_end`` [s] with input signals.
+
+    ``inputs`` maps every input name of the model to a :class:`Signal` (or a constant). Returns a
+    :class:`SimulationResult`; raises :class:`ZenoError` if events accumulate (unless
+    ``raise_on_zeno=False``, then the partial result has ``status == 'zeno'``).
+    """
+    opts = options or SimulationOptions()
+    x0 = np.array(x0, dtype=float)
+    if x0.shape != (model.nx,):
+        raise ValueError(f"x0 must have shape ({model.nx},) for states {model.state_names}, got {x0.shape}")
+    if not np.all(np.isfinite(x0)):
+        bad = [model.state_names[i] for i in np.flatnonzero(~np.isfinite(x0))]
+        raise ValueError(f"x0 has non-finite values in {bad}")
+    if not (math.isfinite(t_end) and math.isfinite(t0) and t_end > t0):
+        raise ValueError(f"t_end = {t_end!r} must be finite and > t0 = {t0!r}")
+    sigs = _signals_for(model, inputs)
+    S = tuple(pack_signals(sigs))
+    bps = sorted({b for s in sigs for b in s.breakpoints if t0 < b < t_end})
+    bps_arr = np.array(bps, dtype=float)
+    tic = time.perf_counter()
+    out = hybrid.simulate_kernel(
+        model.data,
+        S,
+        bps_arr,
+        x0,
+        float(t0),
+        float(t_end),
+        opts.rtol,
+        opts.atol,
+        opts.h_max,
+        opts.h_init,
+        opts.tol_w,
+        opts.energy,
+        opts.zeno_count,
+        opts.zeno_window,
+        opts.max_events,
+        opts.max_steps,
+    )
+    wall = time.perf_counter() - tic
+    T, Y, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = out
+    nx = model.nx
+    events = []
+    for te, el, a, b in zip(evt, evel, evf, evto, strict=True):
+        name, fa = _element_mode_name(model, int(el), int(a))
+        _, fb = _element_mode_name(model, int(el), int(b))
+        events.append(Event(float(te), name, fa, fb))
+    U = np.empty((T.shape[0], len(model.input_names)))
+    # inputs at the samples (right-continuous)
+    for j, s in enumerate(sigs):
+        U[:, j] = s(T)
+    stat = _STATUS.get(int(status), str(status))
+    res = SimulationResult(
+        model=model,
+        t=T,
+        x=Y[:, :nx],
+        u=U,
+        fm=FM,
+        reg=RG,
+        events=tuple(events),
+        work_in=Y[:, nx] if opts.energy else None,
+        dissipated=Y[:, nx + 1 :] if opts.energy else None,
+        status=stat,
+        stats={
+            "steps": int(nsteps),
+            "rejected": int(nrej),
+            "nfev": int(nfev),
+            "knee_crossings": int(nknee),
+            "wall_time_s": wall,
+        },
+    )
+    if stat == "zeno" and raise_on_zeno:
+        name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
+        raise ZenoError(
+            f"events accumulate (Zeno) at t = {float(t_last):.9g} s on element {name!r}: "
+            f"{opts.zeno_count} events within {opts.zeno_window:g} s"
+        )
+    if stat not in ("ok", "zeno"):
+        raise RuntimeError(f"simulation stopped at t = {float(t_last):.9g} s: {stat}")
+    return res
