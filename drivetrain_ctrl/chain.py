@@ -44,7 +44,9 @@ FRICTION_MODES: tuple[str, str, str, str] = ("stuck", "slip+", "slip-", "open")
 BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
 
 
-def _finite(owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False) -> None:
+def _finite(
+    owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False
+) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise TypeError(f"{owner}.{name} must be a real number, got {value!r}")
     if not math.isfinite(value):
@@ -118,7 +120,9 @@ class Spring:
             _finite(self.name, f"x[{i}]", self.x[i])
             _finite(self.name, f"y[{i}]", self.y[i])
             if not self.x[i] > self.x[i - 1]:
-                raise ValueError(f"{self.name}: x must be strictly increasing at x[{i}]={self.x[i]}")
+                raise ValueError(
+                    f"{self.name}: x must be strictly increasing at x[{i}]={self.x[i]}"
+                )
         _finite(self.name, "backlash", self.backlash, lo=0.0)
 
     @classmethod
@@ -139,7 +143,7 @@ class Spring:
                 k = j
                 break
         val = y[k] + (y[k + 1] - y[k]) * (a - x[k]) / (x[k + 1] - x[k])
-        return math.copysign(val, q)
+        return val if q > 0 else -val
 
 
 @dataclass(frozen=True, slots=True)
@@ -168,7 +172,9 @@ class Friction:
         if self.capacity_table is not None and self.capacity_input is None:
             raise ValueError(f"{self.name}: capacity_table needs a capacity_input")
         if self.mu_table is not None and self.mu_table.x[0] != 0.0:
-            raise ValueError(f"{self.name}: mu_table must start at slip 0, got {self.mu_table.x[0]}")
+            raise ValueError(
+                f"{self.name}: mu_table must start at slip 0, got {self.mu_table.x[0]}"
+            )
         if len(self.mode_names) != 4 or len(set(self.mode_names)) != 4:
             raise ValueError(f"{self.name}: mode_names must be 4 distinct names")
 

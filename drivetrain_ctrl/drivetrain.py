@@ -283,7 +283,9 @@ class Drivetrain:
 
     __slots__ = ("model", "params", "gear", "slope", "kind")
 
-    def __init__(self, params: DrivetrainParams, *, kind: str = "full", gear: int = 1, slope: float = 0.0):
+    def __init__(
+        self, params: DrivetrainParams, *, kind: str = "full", gear: int = 1, slope: float = 0.0
+    ):
         if kind not in ("full", "reduced"):
             raise ValueError(f"kind = {kind!r}: must be 'full' or 'reduced'")
         chain = (full_chain if kind == "full" else reduced_chain)(params, gear=gear, slope=slope)
@@ -296,6 +298,9 @@ class Drivetrain:
     def __setattr__(self, key: str, value: object) -> None:
         raise AttributeError(f"Drivetrain is immutable; cannot set {key!r}")
 
+    def __delattr__(self, key: str) -> None:
+        raise AttributeError(f"Drivetrain is immutable; cannot delete {key!r}")
+
     @property
     def tau_t(self) -> float:
         """Total ratio tau_r * D_c [-] of the engaged gear."""
@@ -306,7 +311,12 @@ class Drivetrain:
         return v * self.tau_t / self.params.driveline.R_p
 
     def rigid_state(
-        self, *, omega_engine: float, v_vehicle: float, throttle: float = 0.0, twist_torque: float = 0.0
+        self,
+        *,
+        omega_engine: float,
+        v_vehicle: float,
+        throttle: float = 0.0,
+        twist_torque: float = 0.0,
     ) -> NDArray[np.float64]:
         """A state with every shaft turning at the speed of the vehicle (no slip) except the
         engine at ``omega_engine`` [rad/s], springs preloaded to ``twist_torque`` [N m, primary

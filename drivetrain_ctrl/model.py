@@ -334,6 +334,9 @@ class Model:
             raise AttributeError(f"Model is immutable; cannot set {key!r}")
         object.__setattr__(self, key, value)
 
+    def __delattr__(self, key: str) -> None:
+        raise AttributeError(f"Model is immutable; cannot delete {key!r}")
+
     # -- sizes and names -----------------------------------------------------------------------
     @property
     def nx(self) -> int:
@@ -355,7 +358,9 @@ class Model:
         for f, fi in enumerate(self.frictions):
             if fi.name == name:
                 return f
-        raise KeyError(f"no friction element {name!r}; elements: {[f.name for f in self.frictions]}")
+        raise KeyError(
+            f"no friction element {name!r}; elements: {[f.name for f in self.frictions]}"
+        )
 
     def inputs(self, **values: float) -> F64:
         """Input vector from keyword values; every input must be given, unknown names rejected."""
@@ -420,7 +425,9 @@ class Model:
         yield from itertools.product(*choices)
 
     # -- dynamics --------------------------------------------------------------------------------
-    def _arrays(self, x: F64, u: F64, mode: Mode) -> tuple[F64, F64, NDArray[np.int64], NDArray[np.int64]]:
+    def _arrays(
+        self, x: F64, u: F64, mode: Mode
+    ) -> tuple[F64, F64, NDArray[np.int64], NDArray[np.int64]]:
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         if x.shape != (self.nx,):

@@ -102,7 +102,7 @@ def _damper_spring(xs: tuple[float, ...], ys: tuple[float, ...], q: float) -> fl
         val = ys[-1] + slope * (a - xs[-1])
     else:
         val = float(np.interp(a, xs, ys))
-    return math.copysign(val, q) if q != 0.0 else 0.0
+    return (val if q > 0 else -val) if q != 0.0 else 0.0
 
 
 def _deadzone(q: float, g: float) -> float:

@@ -64,6 +64,10 @@ class Sine:
     phase: float = 0.0
     t_start: float = 0.0
 
+    def __post_init__(self) -> None:
+        for name in ("amplitude", "omega", "phase", "t_start"):
+            _check_finite(f"Sine.{name}", getattr(self, name))
+
     def __call__(self, t: NDArray[np.float64] | float) -> NDArray[np.float64]:
         tt = np.asarray(t, dtype=float)
         out = self.amplitude * np.sin(self.omega * (tt - self.t_start) + self.phase)
@@ -201,13 +205,24 @@ class Signal:
             unknown = set(s) - {"amplitude", "omega", "phase", "t_start"}
             if unknown:
                 raise ValueError(f"{name}.sines[{i}]: unknown key(s) {sorted(unknown)}")
-            sines.append(Sine(**{k: float(v) for k, v in s.items()}))
+            for key in ("amplitude", "omega"):
+                if key not in s:
+                    raise ValueError(f"{name}.sines[{i}].{key}: missing")
+            try:
+                sines.append(Sine(**{k: _check_finite(k, v) for k, v in s.items()}))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"{name}.sines[{i}]: {exc}") from exc
+        vals: dict[str, tuple[float, ...]] = {}
+        for key in ("times", "values"):
+            seq = d[key]
+            if not isinstance(seq, (list, tuple)):
+                raise ValueError(f"{name}.{key} = {seq!r}: must be a list of numbers")
+            try:
+                vals[key] = tuple(_check_finite(f"{name}.{key}[{i}]", v) for i, v in enumerate(seq))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(str(exc)) from exc
         try:
-            return cls(
-                tuple(float(x) for x in d["times"]),  # type: ignore[attr-defined]
-                tuple(float(x) for x in d["values"]),  # type: ignore[attr-defined]
-                tuple(sines),
-            )
+            return cls(vals["times"], vals["values"], tuple(sines))
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{name}: {exc}") from exc
 

@@ -24,9 +24,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from . import hybrid
 from . import kernels as K
-from .model import Mode, Model
+from .model import Model
 from .signals import Signal, pack_signals
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -66,7 +65,12 @@ class SimulationOptions:
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "h_max", "h_init", "tol_w", "zeno_window"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not math.isfinite(v)
+                or v <= 0
+            ):
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be a finite number > 0")
         for name in ("zeno_count", "max_events", "max_steps"):
             v = getattr(self, name)
@@ -85,11 +89,11 @@ class Event:
 
 
 _STATUS = {
-    hybrid.OK: "ok",
-    hybrid.ZENO: "zeno",
-    hybrid.MAX_EVENTS: "max_events",
-    hybrid.MAX_STEPS: "max_steps",
-    hybrid.STEP_TOO_SMALL: "step_too_small",
+    K.OK: "ok",
+    K.ZENO: "zeno",
+    K.MAX_EVENTS: "max_events",
+    K.MAX_STEPS: "max_steps",
+    K.STEP_TOO_SMALL: "step_too_small",
 }
 
 
@@ -181,7 +185,9 @@ class SimulationResult:
         import pandas as pd
 
         cols: dict[str, Any] = {"t [s]": self.t}
-        for j, (nm, un) in enumerate(zip(self.model.state_names, self.model.state_units, strict=True)):
+        for j, (nm, un) in enumerate(
+            zip(self.model.state_names, self.model.state_units, strict=True)
+        ):
             cols[f"{nm} [{un}]"] = self.x[:, j]
         for j, nm in enumerate(self.model.input_names):
             cols[f"input_{nm}"] = self.u[:, j]
@@ -234,10 +240,14 @@ def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
 def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
     unknown = set(inputs) - set(model.input_names)
     if unknown:
-        raise KeyError(f"unknown input(s) {sorted(unknown)}; the model's inputs: {model.input_names}")
+        raise KeyError(
+            f"unknown input(s) {sorted(unknown)}; the model's inputs: {model.input_names}"
+        )
     missing = [n for n in model.input_names if n not in inputs]
     if missing:
-        raise KeyError(f"missing input signal(s) {missing}; the model's inputs: {model.input_names}")
+        raise KeyError(
+            f"missing input signal(s) {missing}; the model's inputs: {model.input_names}"
+        )
     out = []
     for n in model.input_names:
         s = inputs[n]
@@ -268,7 +278,9 @@ def simulate(
     opts = options or SimulationOptions()
     x0 = np.array(x0, dtype=float)
     if x0.shape != (model.nx,):
-        raise ValueError(f"x0 must have shape ({model.nx},) for states {model.state_names}, got {x0.shape}")
+        raise ValueError(
+            f"x0 must have shape ({model.nx},) for states {model.state_names}, got {x0.shape}"
+        )
     if not np.all(np.isfinite(x0)):
         bad = [model.state_names[i] for i in np.flatnonzero(~np.isfinite(x0))]
         raise ValueError(f"x0 has non-finite values in {bad}")
@@ -279,7 +291,7 @@ def simulate(
     bps = sorted({b for s in sigs for b in s.breakpoints if t0 < b < t_end})
     bps_arr = np.array(bps, dtype=float)
     tic = time.perf_counter()
-    out = hybrid.simulate_kernel(
+    out = K.simulate_kernel(
         model.data,
         S,
         bps_arr,

@@ -182,13 +182,6 @@ def test_spring_torque_matches_the_model(dx, dy, g, q) -> None:
     assert sp.torque(-q) == -sp.torque(q)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="chain.py Spring.torque ends with math.copysign(val, q): for a spring law with "
-    "negative y (allowed by the validation) it returns |val| sign(q) instead of the odd "
-    "extension val sign(q); the compiled model (model._pwl_spring) gives -0.52 here, "
-    "Spring.torque +0.52",
-)
 def test_spring_torque_with_negative_law() -> None:
     sp = Spring((0.0, 0.125), (0.0, -1.0), name="s")
     m = Model(Chain(bodies(2), (Coupling("c", spring=sp),)))

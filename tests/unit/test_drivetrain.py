@@ -259,12 +259,6 @@ def test_model_is_immutable() -> None:
         m.chain.bodies = ()  # type: ignore[misc]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="Model and Drivetrain override __setattr__ but not __delattr__ (model.py "
-    "Model.__setattr__, drivetrain.py Drivetrain.__setattr__): `del model.chain`, "
-    "`del drivetrain.model` succeed, and `del model._frozen` makes the Model writable again",
-)
 def test_attributes_cannot_be_deleted() -> None:
     dt = reduced_model(P)
     with pytest.raises(AttributeError):

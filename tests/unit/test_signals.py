@@ -243,11 +243,6 @@ def test_from_dict_bad_inputs_name_the_field(d: dict, field: str) -> None:
         Signal.from_dict(d, name="pedal")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="signals.py: Sine has no validation and Signal.__post_init__ checks only times/values, "
-    "so Signal.from_dict accepts a non-finite sine amplitude/omega (and sine(...) is bypassed)",
-)
 @pytest.mark.parametrize("key", ["amplitude", "omega", "phase", "t_start"])
 def test_from_dict_rejects_non_finite_sine(key: str) -> None:
     sn = {"amplitude": 1.0, "omega": 2.0, "phase": 0.0, "t_start": 0.0, key: float("nan")}
@@ -255,12 +250,6 @@ def test_from_dict_rejects_non_finite_sine(key: str) -> None:
         Signal.from_dict({"times": [0.0], "values": [0.0], "sines": [sn]})
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="signals.py Signal.from_dict builds Sine(**...) outside its try block: a missing "
-    "sine key raises TypeError ('Sine.__init__() missing ... argument'), not a ValueError "
-    "naming the signal",
-)
 def test_from_dict_missing_sine_key_is_a_value_error() -> None:
     with pytest.raises(ValueError, match="amplitude"):
         Signal.from_dict({"times": [0.0], "values": [0.0], "sines": [{"omega": 1.0}]}, name="pedal")
