@@ -858,6 +858,293 @@ def set_interval(S, t_ref, ua, ub):  # type: ignore[no-untyped-def]
         ub[i] = b
 
 
+class CtrlData(NamedTuple):
+    """Array form of a closed-loop controller (see :mod:`drivetrain_ctrl.closedloop`).
+
+    Measurement ``e = sum coef_k * (state or signal)``; SISO LTI ``(A, B, C, D)`` (continuous, or
+    discrete with period ``Ts`` and a delay of ``n_delay`` samples); then, in order: sign switching
+    by ``sign(x[a] - x[b])``, offset, lookup table, saturation, latch-and-ramp (triggered when a
+    friction element enters a mode), rate limiter, second-order actuator; the result drives the
+    plant input ``out_u``. Integer/float parameters are packed in ``ci``/``cf`` (``CI_*``,
+    ``CF_*`` indices).
+    """
+
+    m_kind: I64
+    m_idx: I64
+    m_coef: F64
+    A: F64
+    B: F64
+    C: F64
+    Dm: F64
+    ci: I64
+    cf: F64
+    lk_b: F64
+    lk_s: F64
+    lk_o: F64
+
+
+CI_OUT, CI_NC, CI_DISC, CI_NDELAY, CI_SA, CI_SB, CI_LF, CI_LM = 0, 1, 2, 3, 4, 5, 6, 7
+CI_ACT, CI_RL, CI_LKNB, CI_SAT, CI_ND = 8, 9, 10, 11, 12
+CF_TS, CF_OFF, CF_LO, CF_HI, CF_RLR, CF_RLG, CF_LR, CF_LT, CF_AW, CF_AZ = range(10)
+CS_SIGN, CS_SAT, CS_LK, CS_RL, CS_LATCH, CS_TL, CS_VL, CS_HELD, CS_XD = range(9)
+N_CL_GUARDS = 8
+
+
+def empty_controller() -> CtrlData:
+    """An open loop: no controller states, no guards, no input overridden."""
+    ci = np.zeros(13, dtype=np.int64)
+    ci[CI_OUT] = -1
+    ci[CI_SA] = -1
+    ci[CI_SB] = -1
+    ci[CI_LF] = -1
+    ci[CI_LKNB] = -1
+    return CtrlData(
+        np.zeros(0, np.int64),
+        np.zeros(0, np.int64),
+        np.zeros(0),
+        np.zeros((0, 0)),
+        np.zeros(0),
+        np.zeros(0),
+        np.zeros(1),
+        ci,
+        np.zeros(10),
+        np.zeros(1),
+        np.zeros(1),
+        np.zeros(1),
+    )
+
+
+@jit_inline
+def n_cl_states(Cd):  # type: ignore[no-untyped-def]
+    """Continuous controller states: LTI (if continuous), rate limiter, actuator (2)."""
+    return Cd.ci[CI_NC] + Cd.ci[CI_RL] + 2 * Cd.ci[CI_ACT]
+
+
+@jit_inline
+def cl_error(Cd, y, sv):  # type: ignore[no-untyped-def]
+    e = 0.0
+    for k in range(Cd.m_kind.shape[0]):
+        if Cd.m_kind[k] == 0:
+            e += Cd.m_coef[k] * y[Cd.m_idx[k]]
+        else:
+            e += Cd.m_coef[k] * sv[Cd.m_idx[k]]
+    return e
+
+
+@jit
+def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
+    """(lookup argument, value before saturation, output before rate limiter/actuator)."""
+    ci = Cd.ci
+    cf = Cd.cf
+    if ci[CI_DISC] != 0:
+        v = cs[CS_HELD]
+    else:
+        v = Cd.Dm[0] * e
+        for i in range(ci[CI_NC]):
+            v += Cd.C[i] * y[nx + i]
+    if ci[CI_SA] >= 0:
+        v *= cs[CS_SIGN]
+    v += cf[CF_OFF]
+    varg = v
+    if ci[CI_LKNB] >= 0:
+        r = int(cs[CS_LK])
+        v = Cd.lk_s[r] * v + Cd.lk_o[r]
+    vpre = v
+    if ci[CI_SAT] != 0:
+        sr = int(cs[CS_SAT])
+        if sr == 0:
+            v = cf[CF_LO]
+        elif sr == 2:
+            v = cf[CF_HI]
+    lat = cs[CS_LATCH]
+    if lat == 1.0:
+        d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
+        v = cs[CS_VL] + d * cf[CF_LR] * (t - cs[CS_TL])
+    elif lat == 2.0:
+        v = cf[CF_LT]
+    return varg, vpre, v
+
+
+@jit_inline
+def cl_output(Cd, cs, y, nx, t, sv):  # type: ignore[no-untyped-def]
+    """The value applied to the plant input ``out_u``."""
+    ci = Cd.ci
+    i_rl = nx + ci[CI_NC]
+    i_act = i_rl + ci[CI_RL]
+    if ci[CI_ACT] != 0:
+        return y[i_act]
+    if ci[CI_RL] != 0:
+        return y[i_rl]
+    e = cl_error(Cd, y, sv)
+    varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+    return v
+
+
+@jit_inline
+def cl_derivs(Cd, cs, y, nx, t, sv, dy):  # type: ignore[no-untyped-def]
+    ci = Cd.ci
+    cf = Cd.cf
+    nc = ci[CI_NC]
+    if ci[CI_OUT] < 0:
+        return
+    e = cl_error(Cd, y, sv)
+    for i in range(nc):
+        acc = Cd.B[i] * e
+        for j in range(nc):
+            acc += Cd.A[i, j] * y[nx + j]
+        dy[nx + i] = acc
+    varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+    i_rl = nx + nc
+    i_act = i_rl + ci[CI_RL]
+    xin = v
+    if ci[CI_RL] != 0:
+        rr = int(cs[CS_RL])
+        if rr == 1:
+            dy[i_rl] = cf[CF_RLG] * (v - y[i_rl])
+        elif rr == 2:
+            dy[i_rl] = cf[CF_RLR]
+        else:
+            dy[i_rl] = -cf[CF_RLR]
+        xin = y[i_rl]
+    if ci[CI_ACT] != 0:
+        w = cf[CF_AW]
+        dy[i_act] = y[i_act + 1]
+        dy[i_act + 1] = w * w * (xin - y[i_act]) - 2.0 * cf[CF_AZ] * w * y[i_act + 1]
+
+
+@jit_inline
+def cl_guards(Cd, cs, y, nx, t, sv, g, off):  # type: ignore[no-untyped-def]
+    """The controller's guards (>= 0 while its discrete state holds) into ``g[off:off+8]``."""
+    ci = Cd.ci
+    cf = Cd.cf
+    for k in range(N_CL_GUARDS):
+        g[off + k] = np.inf
+    if ci[CI_OUT] < 0:
+        return
+    if ci[CI_SA] >= 0:
+        g[off] = cs[CS_SIGN] * (y[ci[CI_SA]] - y[ci[CI_SB]])
+    e = cl_error(Cd, y, sv)
+    varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+    if ci[CI_SAT] != 0:
+        sr = int(cs[CS_SAT])
+        if sr == 1:
+            g[off + 1] = vpre - cf[CF_LO]
+            g[off + 2] = cf[CF_HI] - vpre
+        elif sr == 0:
+            g[off + 1] = cf[CF_LO] - vpre
+        else:
+            g[off + 2] = vpre - cf[CF_HI]
+    nb = ci[CI_LKNB]
+    if nb > 0:
+        r = int(cs[CS_LK])
+        if r > 0:
+            g[off + 3] = varg - Cd.lk_b[r - 1]
+        if r < nb:
+            g[off + 4] = Cd.lk_b[r] - varg
+    if ci[CI_RL] != 0:
+        z = cf[CF_RLG] * (v - y[nx + ci[CI_NC]])
+        R = cf[CF_RLR]
+        rr = int(cs[CS_RL])
+        if rr == 1:
+            g[off + 5] = R - z
+            g[off + 6] = z + R
+        elif rr == 2:
+            g[off + 5] = z - R
+        else:
+            g[off + 6] = -R - z
+    if cs[CS_LATCH] == 1.0:
+        d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
+        g[off + 7] = (cf[CF_LT] - v) * d
+
+
+@jit
+def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
+    """Set the controller's discrete state from the current values (start and events)."""
+    ci = Cd.ci
+    cf = Cd.cf
+    if ci[CI_OUT] < 0:
+        return
+    if ci[CI_SA] >= 0:
+        d = y[ci[CI_SA]] - y[ci[CI_SB]]
+        if d > 0.0:
+            cs[CS_SIGN] = 1.0
+        elif d < 0.0:
+            cs[CS_SIGN] = -1.0
+        elif cs[CS_SIGN] == 0.0:
+            cs[CS_SIGN] = 1.0
+    e = cl_error(Cd, y, sv)
+    nb = ci[CI_LKNB]
+    if nb >= 0:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        r = 0
+        while r < nb and varg > Cd.lk_b[r]:
+            r += 1
+        cs[CS_LK] = r
+    if ci[CI_SAT] != 0:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        if vpre < cf[CF_LO]:
+            cs[CS_SAT] = 0.0
+        elif vpre > cf[CF_HI]:
+            cs[CS_SAT] = 2.0
+        else:
+            cs[CS_SAT] = 1.0
+    lf = ci[CI_LF]
+    if cs[CS_LATCH] == 0.0 and lf >= 0 and fm[lf] == ci[CI_LM]:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        cs[CS_LATCH] = 1.0
+        cs[CS_TL] = t
+        cs[CS_VL] = v
+    if cs[CS_LATCH] == 1.0:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
+        if (cf[CF_LT] - v) * d <= 0.0:
+            cs[CS_LATCH] = 2.0
+    if ci[CI_RL] != 0:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        z = cf[CF_RLG] * (v - y[nx + ci[CI_NC]])
+        if z > cf[CF_RLR]:
+            cs[CS_RL] = 2.0
+        elif z < -cf[CF_RLR]:
+            cs[CS_RL] = 0.0
+        else:
+            cs[CS_RL] = 1.0
+
+
+@jit
+def cl_sample(Cd, cs, y, sv):  # type: ignore[no-untyped-def]
+    """Discrete controller: one sample (output with delay, then state update)."""
+    nd = Cd.ci[CI_ND]
+    e = cl_error(Cd, y, sv)
+    w = Cd.Dm[0] * e
+    for i in range(nd):
+        w += Cd.C[i] * cs[CS_XD + i]
+    xn = np.empty(nd)
+    for i in range(nd):
+        acc = Cd.B[i] * e
+        for j in range(nd):
+            acc += Cd.A[i, j] * cs[CS_XD + j]
+        xn[i] = acc
+    for i in range(nd):
+        cs[CS_XD + i] = xn[i]
+    nde = Cd.ci[CI_NDELAY]
+    base = CS_XD + nd
+    # shift the delay line: buf[0] oldest ... buf[nde] newest
+    for k in range(nde):
+        cs[base + k] = cs[base + k + 1]
+    cs[base + nde] = w
+    cs[CS_HELD] = cs[base]
+
+
+@jit_inline
+def eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):  # type: ignore[no-untyped-def]
+    """Plant inputs at ``t``: signals, with the controlled input from the controller."""
+    eval_inputs(S, ua, ub, t, t_ref, sv)
+    for i in range(u.shape[0]):
+        u[i] = sv[i]
+    if Cd.ci[CI_OUT] >= 0:
+        u[Cd.ci[CI_OUT]] = cl_output(Cd, cs, y, nx, t, sv)
+
+
 @jit_inline
 def eval_inputs(S, ua, ub, t, t_ref, u):  # type: ignore[no-untyped-def]
     ssin = S[3]
@@ -872,72 +1159,68 @@ def eval_inputs(S, ua, ub, t, t_ref, u):  # type: ignore[no-untyped-def]
 
 
 @jit_inline
-def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy):  # type: ignore[no-untyped-def]
-    """Derivative of the augmented state ``y = [x, W_in, E_diss...]``.
+def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+    """Derivative of the augmented state ``y = [x, controller states, W_in, E_diss...]``.
 
     Hot path: no array views are made here (each view costs reference counting, which made a
-    step 5x slower); ``u``, ``tau``, ``pd`` are work buffers.
+    step 5x slower); ``u``, ``tau``, ``pd``, ``sv`` are work buffers.
     """
-    eval_inputs(S, ua, ub, t, t_ref, u)
+    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     p_in = rhs_into(D, y, u, fm, reg, P, dy, tau, pd, energy)
+    cl_derivs(Cd, cs, y, nx, t, sv, dy)
     if energy:
-        dy[nx] = p_in
+        ne = nx + n_cl_states(Cd)
+        dy[ne] = p_in
         for k in range(pd.shape[0]):
-            dy[nx + 1 + k] = pd[k]
+            dy[ne + 1 + k] = pd[k]
+
+
+_A_TAB = np.array(
+    [
+        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [A21, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [A31, A32, 0.0, 0.0, 0.0, 0.0],
+        [A41, A42, A43, 0.0, 0.0, 0.0],
+        [A51, A52, A53, A54, 0.0, 0.0],
+        [A61, A62, A63, A64, A65, 0.0],
+        [B1, 0.0, B3, B4, B5, B6],
+    ]
+)
+_C_TAB = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
+_E_TAB = np.array([E1, 0.0, E3, E4, E5, E6, E7])
 
 
 @jit
 def dp5_step(  # type: ignore[no-untyped-def]
-    D,
-    S,
-    ua,
-    ub,
-    t,
-    t_ref,
-    y,
-    h,
-    fm,
-    reg,
-    P,
-    nx,
-    energy,
-    u,
-    tau,
-    pd,
-    k1,
-    k2,
-    k3,
-    k4,
-    k5,
-    k6,
-    k7,
-    yt,
-    y1,
-    err,
+    D, S, ua, ub, t, t_ref, y, h, fm, reg, P, nx, energy, u, tau, pd, Ks, dy, yt, y1, err, Cd, cs, sv
 ):
-    """One Dormand-Prince step from ``y`` with ``k1 = f(y)``; writes ``y1``, ``err`` and
-    ``k7 = f(y1)`` (first same as last)."""
+    """One Dormand-Prince step from ``y`` with ``Ks[0] = f(y)``; writes ``y1``, ``err`` and
+    ``Ks[6] = f(y1)`` (first same as last). One call site of ``full_rhs`` (inlined), stages in a
+    loop: compiling seven inlined copies took minutes."""
     n = y.shape[0]
+    for st in range(1, 7):
+        for i in range(n):
+            acc = 0.0
+            for j in range(st):
+                acc += _A_TAB[st, j] * Ks[j, i]
+            yt[i] = y[i] + h * acc
+        if st == 6:
+            for i in range(n):
+                y1[i] = yt[i]
+        full_rhs(D, S, ua, ub, t + _C_TAB[st] * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv)
+        for i in range(n):
+            Ks[st, i] = dy[i]
     for i in range(n):
-        yt[i] = y[i] + h * (A21 * k1[i])
-    full_rhs(D, S, ua, ub, t + C2 * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, k2)
-    for i in range(n):
-        yt[i] = y[i] + h * (A31 * k1[i] + A32 * k2[i])
-    full_rhs(D, S, ua, ub, t + C3 * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, k3)
-    for i in range(n):
-        yt[i] = y[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i])
-    full_rhs(D, S, ua, ub, t + C4 * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, k4)
-    for i in range(n):
-        yt[i] = y[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i])
-    full_rhs(D, S, ua, ub, t + C5 * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, k5)
-    for i in range(n):
-        yt[i] = y[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i])
-    full_rhs(D, S, ua, ub, t + h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, k6)
-    for i in range(n):
-        y1[i] = y[i] + h * (B1 * k1[i] + B3 * k3[i] + B4 * k4[i] + B5 * k5[i] + B6 * k6[i])
-    full_rhs(D, S, ua, ub, t + h, t_ref, y1, fm, reg, P, nx, energy, u, tau, pd, k7)
-    for i in range(n):
-        err[i] = h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i])
+        acc = 0.0
+        for j in range(7):
+            acc += _E_TAB[j] * Ks[j, i]
+        err[i] = h * acc
+
+
+@jit
+def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+    """:func:`full_rhs` as an ordinary call (outside the hot loop)."""
+    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv)
 
 
 D1, D3, D4, D5, D6, D7 = (
@@ -951,16 +1234,18 @@ D1, D3, D4, D5, D6, D7 = (
 
 
 @jit_inline
-def dense_coeffs(y, y1, k1, k3, k4, k5, k6, k7, h, rc):  # type: ignore[no-untyped-def]
+def dense_coeffs(y, y1, Ks, h, rc):  # type: ignore[no-untyped-def]
     """Coefficients of the Dormand-Prince continuous extension (Hairer's DOPRI5) into ``rc``."""
     for i in range(y.shape[0]):
         r2 = y1[i] - y[i]
-        r3 = h * k1[i] - r2
+        r3 = h * Ks[0, i] - r2
         rc[0, i] = y[i]
         rc[1, i] = r2
         rc[2, i] = r3
-        rc[3, i] = r2 - h * k7[i] - r3
-        rc[4, i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i])
+        rc[3, i] = r2 - h * Ks[6, i] - r3
+        rc[4, i] = h * (
+            D1 * Ks[0, i] + D3 * Ks[2, i] + D4 * Ks[3, i] + D5 * Ks[4, i] + D6 * Ks[5, i] + D7 * Ks[6, i]
+        )
 
 
 @jit_inline
@@ -972,9 +1257,10 @@ def dense_eval(rc, th, out):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g):  # type: ignore[no-untyped-def]
-    eval_inputs(S, ua, ub, t, t_ref, u)
+def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
+    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards(D, y, u, fm, reg, Lam, g)
+    cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
 @jit
@@ -1014,6 +1300,29 @@ def _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_
 
 
 @jit
+def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0):  # type: ignore[no-untyped-def]
+    """Decide plant modes and controller states together until no guard fires."""
+    P = np.zeros((1, 1))
+    Lam = np.zeros((1, 1))
+    ok = False
+    for _rep in range(20):
+        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+        decide_modes(D, y, u, fm, reg, tol_w)
+        cl_update(Cd, cs, y, nx, t, sv, fm)
+        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+        P, Lam = mode_matrices(D, fm)
+        guards(D, y, u, fm, reg, Lam, g0)
+        cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
+        ok = True
+        for q in range(g0.shape[0]):
+            if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
+                ok = False
+        if ok:
+            break
+    return P, Lam
+
+
+@jit
 def simulate_kernel(  # type: ignore[no-untyped-def]
     D,
     S,
@@ -1031,26 +1340,42 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     zeno_window,
     max_events,
     max_steps,
+    Cd,
+    cs,
+    y_cl0,
+    nu,
 ):
-    """Run the hybrid simulation. Returns a tuple of outputs (see ``simulate.py``)."""
+    """Run the hybrid simulation (open or closed loop). Returns a tuple of outputs.
+
+    ``Cd``/``cs``: controller data and its discrete state (see :class:`CtrlData`);
+    ``y_cl0``: initial continuous controller states; ``nu``: number of plant inputs (the
+    first ``nu`` signals; the others are controller references).
+    """
     nx = x0.shape[0]
     n = D.M.shape[0]
     nf = D.f_kind.shape[0]
     nt = D.t_nb.shape[0]
+    ncl = n_cl_states(Cd)
+    nxs = nx + ncl
     npow = n + D.ratio.shape[0] + nf
-    ny = nx + (1 + npow if energy else 0)
-    nu = S[2].shape[0]
-    ng = n_guards(D)
+    ny = nxs + (1 + npow if energy else 0)
+    nsig = S[2].shape[0]
+    ng = n_guards(D) + N_CL_GUARDS
     u = np.zeros(nu)
     uw = np.zeros(nu)
+    sv = np.zeros(nsig)
+    svw = np.zeros(nsig)
     tau = np.zeros(n)
     pd = np.zeros(npow)
-    ua = np.zeros(nu)
-    ub = np.zeros(nu)
+    ua = np.zeros(nsig)
+    ub = np.zeros(nsig)
+    Ts = Cd.cf[CF_TS] if Cd.ci[CI_DISC] != 0 else np.inf
+    t_sample = t0 if Cd.ci[CI_DISC] != 0 else np.inf
 
     cap = 1024
     T = np.empty(cap)
     Y = np.empty((cap, ny))
+    U = np.empty((cap, nu))
     FM = np.empty((cap, nf), dtype=np.int64)
     RG = np.empty((cap, nt), dtype=np.int64)
     ev_t = np.empty(max_events + nf + nt)
@@ -1064,13 +1389,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     status = OK
     status_el = -1
 
-    k1 = np.empty(ny)
-    k2 = np.empty(ny)
-    k3 = np.empty(ny)
-    k4 = np.empty(ny)
-    k5 = np.empty(ny)
-    k6 = np.empty(ny)
-    k7 = np.empty(ny)
+    Ks = np.empty((7, ny))
+    dy = np.empty(ny)
     yt = np.empty(ny)
     y1 = np.empty(ny)
     err = np.empty(ny)
@@ -1079,6 +1399,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     rc = np.empty((5, ny))
     y = np.zeros(ny)
     y[:nx] = x0
+    y[nx:nxs] = y_cl0
     t = t0
     ib = 0
     while ib < bps.shape[0] and bps[ib] <= t:
@@ -1087,25 +1408,31 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     set_interval(S, t_ref, ua, ub)
     fm = np.full(nf, OPEN, dtype=np.int64)
     reg = np.zeros(nt, dtype=np.int64)
-    eval_inputs(S, ua, ub, t, t_ref, u)
-    decide_modes(D, y, u, fm, reg, tol_w)
-    P, Lam = mode_matrices(D, fm)
     g0 = np.empty(ng)
     g1 = np.empty(ng)
     gtry = np.empty(ng)
+    if t_sample <= t:
+        eval_inputs(S, ua, ub, t, t_ref, sv)
+        cl_sample(Cd, cs, y, sv)
+        t_sample = t + Ts
+    P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
     h = h_init
-    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, k1)
+    full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+    Ks[0, :] = dy
     nfev += 1
-    _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0)
+    _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)
 
     T[0] = t
     Y[0] = y
+    U[0] = u
     FM[0] = fm
     RG[0] = reg
     n_rec = 1
     zeno_ring = np.full(zeno_count, -np.inf)
     zeno_pos = 0
     err_old = 1.0
+    fm_old = fm.copy()
+    reg_old = reg.copy()
 
     while t < t_end:
         if n_steps >= max_steps:
@@ -1114,46 +1441,24 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         t_stop = t_end
         if ib < bps.shape[0] and bps[ib] < t_stop:
             t_stop = bps[ib]
+        if t_sample < t_stop:
+            t_stop = t_sample
         hh = min(h, h_max)
         hit_stop = hh >= t_stop - t
         if hit_stop:
             hh = t_stop - t
         dp5_step(
-            D,
-            S,
-            ua,
-            ub,
-            t,
-            t_ref,
-            y,
-            hh,
-            fm,
-            reg,
-            P,
-            nx,
-            energy,
-            uw,
-            tau,
-            pd,
-            k1,
-            k2,
-            k3,
-            k4,
-            k5,
-            k6,
-            k7,
-            yt,
-            y1,
-            err,
+            D, S, ua, ub, t, t_ref, y, hh, fm, reg, P, nx, energy, uw, tau, pd, Ks, dy, yt, y1, err,
+            Cd, cs, svw,
         )
         nfev += 6
         en = 0.0
-        for i in range(nx):
+        for i in range(nxs):
             a = abs(y[i])
             b = abs(y1[i])
             r = err[i] / (atol + rtol * (a if a > b else b))
             en += r * r
-        en = np.sqrt(en / nx)
+        en = np.sqrt(en / nxs)
         if not (en <= 1.0):
             n_rej += 1
             fac = 0.9 * en ** (-0.2) if en == en else 0.2
@@ -1171,16 +1476,16 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         err_old = max(en, 1e-4)
         h_next = hh * min(5.0, max(0.2, fac))
         t1 = t + hh if not hit_stop else t_stop
-        _guards_at(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1)
+        _guards_at(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv)
         j = _fired(g0, g1)
         if j < 0:
             t = t1
             y[:] = y1
-            k1[:] = k7
+            Ks[0, :] = Ks[6]
             g0[:] = g1
         else:
             # locate the event on the continuous extension: Illinois on guard j in theta
-            dense_coeffs(y, y1, k1, k3, k4, k5, k6, k7, hh, rc)
+            dense_coeffs(y, y1, Ks, hh, rc)
             lo = 0.0
             hi = 1.0
             glo = g0[j] if g0[j] > 0.0 else 0.0
@@ -1198,7 +1503,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 if not (hi - s >= margin):
                     s = hi - margin
                 dense_eval(rc, s, ys)
-                _guards_at(D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry)
+                _guards_at(D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv)
                 jj = _fired(g0, gtry)
                 if jj >= 0:
                     if jj != j:
@@ -1216,22 +1521,11 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                     if side == 1:
                         ghi *= 0.5
                     side = 1
-            hi = hi * hh
-            t = t + hi
+            t = t + hi * hh
             y[:] = yhi
-            fm_old = fm.copy()
-            reg_old = reg.copy()
-            eval_inputs(S, ua, ub, t, t_ref, u)
-            for _rep in range(20):
-                decide_modes(D, y, u, fm, reg, tol_w)
-                P, Lam = mode_matrices(D, fm)
-                guards(D, y, u, fm, reg, Lam, g0)
-                bad = False
-                for q in range(ng):
-                    if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
-                        bad = True
-                if not bad:
-                    break
+            fm_old[:] = fm
+            reg_old[:] = reg
+            P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             for e in range(n_old, n_ev):
@@ -1240,30 +1534,40 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 if t - zeno_ring[zeno_pos] < zeno_window:
                     status = ZENO
                     status_el = ev_el[e]
+            if j >= n_guards(D):
+                # a controller guard: count it for the Zeno check too
+                zeno_ring[zeno_pos] = t
+                zeno_pos = (zeno_pos + 1) % zeno_count
+                if t - zeno_ring[zeno_pos] < zeno_window:
+                    status = ZENO
+                    status_el = nf + nt
             if status != OK:
                 break
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
-            full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, k1)
+            full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+            Ks[0, :] = dy
             nfev += 1
             h_next = hh
         if j < 0 and hit_stop and t < t_end:
-            # input breakpoint: new pieces of the inputs, re-decide the mode
-            ib += 1
+            # input breakpoint or controller sample: new input pieces, re-decide
             while ib < bps.shape[0] and bps[ib] <= t:
                 ib += 1
             t_ref = t
             set_interval(S, t_ref, ua, ub)
-            fm_old = fm.copy()
-            reg_old = reg.copy()
-            eval_inputs(S, ua, ub, t, t_ref, u)
-            decide_modes(D, y, u, fm, reg, tol_w)
-            P, Lam = mode_matrices(D, fm)
+            if t_sample <= t:
+                eval_inputs(S, ua, ub, t, t_ref, sv)
+                cl_sample(Cd, cs, y, sv)
+                t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
+            fm_old[:] = fm
+            reg_old[:] = reg
+            P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
-            full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, k1)
+            full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+            Ks[0, :] = dy
             nfev += 1
-            guards(D, y, u, fm, reg, Lam, g0)
+            _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)
             if hh < h:
                 h_next = h
         h = h_next
@@ -1275,14 +1579,19 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             Y2 = np.empty((c2, ny))
             Y2[:n_rec] = Y[:n_rec]
             Y = Y2
+            U2 = np.empty((c2, nu))
+            U2[:n_rec] = U[:n_rec]
+            U = U2
             F2 = np.empty((c2, nf), dtype=np.int64)
             F2[:n_rec] = FM[:n_rec]
             FM = F2
             R2 = np.empty((c2, nt), dtype=np.int64)
             R2[:n_rec] = RG[:n_rec]
             RG = R2
+        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
         T[n_rec] = t
         Y[n_rec] = y
+        U[n_rec] = u
         FM[n_rec] = fm
         RG[n_rec] = reg
         n_rec += 1
@@ -1294,6 +1603,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     return (
         T[:n_rec],
         Y[:n_rec],
+        U[:n_rec],
         FM[:n_rec],
         RG[:n_rec],
         ev_t[:n_ev],

@@ -228,6 +228,8 @@ class SimulationResult:
 
 def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
     nf = len(model.frictions)
+    if el >= nf + len(model.tables):
+        return "controller", str(code)
     if el < nf:
         fi = model.frictions[el]
         return fi.name, fi.mode_names[code]
@@ -268,10 +270,15 @@ def simulate(
     t0: float = 0.0,
     options: SimulationOptions | None = None,
     raise_on_zeno: bool = True,
+    controller: Any = None,
+    controller_initial: float = 0.0,
 ) -> SimulationResult:
     """Simulate ``model`` from state ``x0`` at ``t0`` [s] to ``t_end`` [s] with input signals.
 
-    ``inputs`` maps every input name of the model to a :class:`Signal` (or a constant). Returns a
+    ``inputs`` maps every input name of the model to a :class:`Signal` (or a constant); with a
+    ``controller`` (:class:`~drivetrain_ctrl.closedloop.Controller`) the input it drives is
+    computed in the loop and must not be given; ``controller_initial`` is its initial value (e.g.
+    the actuator position [m]). Returns a
     :class:`SimulationResult`; raises :class:`ZenoError` if events accumulate (unless
     ``raise_on_zeno=False``, then the partial result has ``status == 'zeno'``).
     """
@@ -286,7 +293,20 @@ def simulate(
         raise ValueError(f"x0 has non-finite values in {bad}")
     if not (math.isfinite(t_end) and math.isfinite(t0) and t_end > t0):
         raise ValueError(f"t_end = {t_end!r} must be finite and > t0 = {t0!r}")
+    if controller is not None:
+        driven = controller.output
+        if driven not in model.input_names:
+            raise KeyError(f"controller output {driven!r} is not an input of the model {model.input_names}")
+        if driven in inputs:
+            raise KeyError(f"input {driven!r} is driven by the controller; do not give a signal for it")
+        inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
+    if controller is not None:
+        Cd, cs, _, refs = controller.compile(model)
+        y_cl0 = controller.initial_states(model, x0, float(controller_initial))
+        sigs = sigs + list(refs)
+    else:
+        Cd, cs, y_cl0 = K.empty_controller(), np.zeros(K.CS_XD), np.zeros(0)
     S = tuple(pack_signals(sigs))
     bps = sorted({b for s in sigs for b in s.breakpoints if t0 < b < t_end})
     bps_arr = np.array(bps, dtype=float)
@@ -308,19 +328,20 @@ def simulate(
         opts.zeno_window,
         opts.max_events,
         opts.max_steps,
+        Cd,
+        cs,
+        y_cl0,
+        len(model.input_names),
     )
     wall = time.perf_counter() - tic
-    T, Y, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = out
+    T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = out
     nx = model.nx
+    nxs = nx + y_cl0.shape[0]
     events = []
     for te, el, a, b in zip(evt, evel, evf, evto, strict=True):
         name, fa = _element_mode_name(model, int(el), int(a))
         _, fb = _element_mode_name(model, int(el), int(b))
         events.append(Event(float(te), name, fa, fb))
-    U = np.empty((T.shape[0], len(model.input_names)))
-    # inputs at the samples (right-continuous)
-    for j, s in enumerate(sigs):
-        U[:, j] = s(T)
     stat = _STATUS.get(int(status), str(status))
     res = SimulationResult(
         model=model,
@@ -330,8 +351,8 @@ def simulate(
         fm=FM,
         reg=RG,
         events=tuple(events),
-        work_in=Y[:, nx] if opts.energy else None,
-        dissipated=Y[:, nx + 1 :] if opts.energy else None,
+        work_in=Y[:, nxs] if opts.energy else None,
+        dissipated=Y[:, nxs + 1 :] if opts.energy else None,
         status=stat,
         stats={
             "steps": int(nsteps),
@@ -340,6 +361,7 @@ def simulate(
             "knee_crossings": int(nknee),
             "wall_time_s": wall,
         },
+        extras={"controller_states": Y[:, nx:nxs]} if controller is not None else {},
     )
     if stat == "zeno" and raise_on_zeno:
         name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"

@@ -1,0 +1,457 @@
+"""Command line interface ``drivetrain-ctrl``.
+
+Subcommands::
+
+    drivetrain-ctrl simulate --scenario NAME|FILE.toml --model full|reduced
+                             --params NAME|FILE.toml --out DIR [--rtol R] [--t-end T]
+    drivetrain-ctrl demo --out DIR [--quick] [--params NAME|FILE.toml]
+    drivetrain-ctrl params show [NAME|FILE.toml] [--provenance]
+    drivetrain-ctrl params list
+    drivetrain-ctrl scenarios list
+
+``simulate`` writes into DIR: ``trajectory.csv`` and ``events.csv`` (column names carry units),
+``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.metrics.engagement_metrics`;
+deterministic: the same inputs give the same bytes), ``timing.json`` (wall time, steps, function
+evaluations), ``overview.png`` and ``energy.png``. ``demo`` runs both built-in scenarios on the
+full and the reduced model (``--quick``: reduced only) into ``DIR/<scenario>-<model>/`` and
+writes ``DIR/summary.md``.
+
+Exit codes: 0 success; 1 the simulation failed (e.g. Zeno) or an output could not be written;
+2 invalid command line or input (unknown scenario or parameter set, invalid or misspelt key in a
+TOML file), reported on stderr without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import textwrap
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from .params import (
+    DrivetrainParams,
+    Table,
+    available_parameter_sets,
+    field_info,
+    field_paths,
+    load_params,
+)
+from .scenarios import Scenario, builtin_scenarios, load_scenario
+
+__all__ = ["main", "run_simulation"]
+
+PROG = "drivetrain-ctrl"
+MODELS = ("full", "reduced")
+DEFAULT_PARAMS = "passenger-car"
+
+
+class InputError(Exception):
+    """Invalid user input (exit code 2)."""
+
+
+class RunError(Exception):
+    """A simulation failed or an output could not be written (exit code 1)."""
+
+
+def _msg(exc: BaseException) -> str:
+    if isinstance(exc, KeyError) and exc.args:
+        return str(exc.args[0])
+    return str(exc) or type(exc).__name__
+
+
+# ------------------------------------------------------------------------------------------------
+# loading
+# ------------------------------------------------------------------------------------------------
+
+
+def _load_params(source: str) -> DrivetrainParams:
+    try:
+        return load_params(source)
+    except FileNotFoundError as exc:
+        raise InputError(f"parameter file not found: {exc.filename or source}") from None
+    except (ValueError, OSError) as exc:  # ParameterError is a ValueError
+        raise InputError(f"parameters: {_msg(exc)}") from None
+
+
+def _load_scenario(source: str) -> Scenario:
+    try:
+        return load_scenario(source)
+    except (ValueError, OSError) as exc:  # ScenarioError is a ValueError
+        raise InputError(f"scenario: {_msg(exc)}") from None
+
+
+# ------------------------------------------------------------------------------------------------
+# one run
+# ------------------------------------------------------------------------------------------------
+
+
+def _write_json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(data, sort_keys=True, indent=2) + "\n", encoding="utf-8")
+
+
+def run_simulation(
+    scenario: Scenario,
+    params: DrivetrainParams,
+    kind: str,
+    out: Path,
+    *,
+    rtol: float | None = None,
+    t_end: float | None = None,
+    plots: bool = True,
+) -> dict[str, Any]:
+    """Simulate ``scenario`` on the ``kind`` model of ``params`` and write the outputs to ``out``.
+
+    Returns ``{"metrics": ..., "timing": ..., "files": [...]}``. Raises :class:`InputError`
+    for invalid options and :class:`RunError` if the simulation fails.
+    """
+    from .metrics import engagement_metrics, json_ready
+    from .simulate import SimulationOptions, ZenoError, simulate
+
+    tic = time.perf_counter()
+    try:
+        opts = SimulationOptions() if rtol is None else SimulationOptions(rtol=rtol)
+    except ValueError as exc:
+        raise InputError(f"--rtol: {exc}") from None
+    t_stop = scenario.t_end if t_end is None else t_end
+    if not (isinstance(t_stop, int | float) and math.isfinite(t_stop) and t_stop > 0):
+        raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
+    try:
+        dt: Any = scenario.drivetrain(params, kind=kind)  # Any: Drivetrain's slots are untyped
+        x0 = scenario.initial_state(dt)
+    except ValueError as exc:
+        raise InputError(f"scenario {scenario.name!r}: {_msg(exc)}") from None
+    try:
+        res = simulate(dt.model, x0, scenario.input_signals(), t_end=float(t_stop), options=opts)
+    except (ZenoError, RuntimeError) as exc:
+        raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
+
+    metrics = engagement_metrics(res, dt)
+    record: dict[str, Any] = {
+        "scenario": scenario.name,
+        "parameter_set": params.name,
+        "rtol": opts.rtol,
+        "atol": opts.atol,
+        **metrics,
+    }
+    record = json_ready(record)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        files = ["trajectory.csv", "events.csv", "metrics.json", "timing.json"]
+        res.to_dataframe().to_csv(out / "trajectory.csv", index=False, lineterminator="\n")
+        res.events_dataframe().to_csv(out / "events.csv", index=False, lineterminator="\n")
+        _write_json(out / "metrics.json", record)
+        if plots:
+            from .plotting import plot_energy, plot_simulation
+
+            plot_simulation(res, out / "overview.png")
+            plot_energy(res, out / "energy.png")
+            files += ["overview.png", "energy.png"]
+        timing = {
+            "wall_time_s": float(res.stats.get("wall_time_s", math.nan)),
+            "total_wall_time_s": time.perf_counter() - tic,
+            "steps": int(res.stats.get("steps", 0)),
+            "rejected_steps": int(res.stats.get("rejected", 0)),
+            "nfev": int(res.stats.get("nfev", 0)),
+            "n_samples": int(res.t.shape[0]),
+        }
+        _write_json(out / "timing.json", timing)
+    except OSError as exc:
+        raise RunError(f"cannot write outputs to {out}: {exc}") from None
+    return {"metrics": record, "timing": timing, "files": files}
+
+
+def _fmt(v: Any, spec: str = ".4g") -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return format(v, spec)
+    return str(v)
+
+
+def _summary_line(m: dict[str, Any], timing: dict[str, Any]) -> str:
+    lock = m["lockup_time_s"]
+    lock_txt = f"lock-up at {lock:.4g} s" if lock is not None else "no lock-up"
+    return (
+        f"{m['scenario']} / {m['model']} model ({m['parameter_set']}): {m['status']}, "
+        f"{m['n_samples']} samples, {m['n_events']} events, {timing['wall_time_s']:.3g} s\n"
+        f"  {lock_txt}; clutch energy {_fmt(m['clutch_energy_J'])} J; "
+        f"final speed {_fmt(m['final_vehicle_speed_kmh'])} km/h; "
+        f"engine {_fmt(m['min_engine_speed_rpm'])}..{_fmt(m['max_engine_speed_rpm'])} rpm; "
+        f"max jerk {_fmt(m['max_vehicle_jerk_m_s3'])} m/s^3; "
+        f"energy residual {_fmt(m['energy_residual_rel'], '.2g')}"
+    )
+
+
+# ------------------------------------------------------------------------------------------------
+# subcommands
+# ------------------------------------------------------------------------------------------------
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    params = _load_params(args.params)
+    scenario = _load_scenario(args.scenario)
+    out = Path(args.out)
+    r = run_simulation(scenario, params, args.model, out, rtol=args.rtol, t_end=args.t_end)
+    print(_summary_line(r["metrics"], r["timing"]))
+    print(f"  outputs: {out}/ ({', '.join(r['files'])})")
+    return 0
+
+
+#: (metric key, label) rows of the demo summary table
+_SUMMARY_ROWS: tuple[tuple[str, str], ...] = (
+    ("status", "status"),
+    ("lockup_time_s", "lock-up time [s]"),
+    ("clutch_energy_J", "clutch friction energy [J]"),
+    ("final_vehicle_speed_kmh", "final vehicle speed [km/h]"),
+    ("max_vehicle_accel_m_s2", "max vehicle acceleration [m/s^2]"),
+    ("max_vehicle_jerk_m_s3", "max vehicle jerk [m/s^3]"),
+    ("lurch_m_s2", "lurch at lock-up [m/s^2]"),
+    ("lockup_slip_accel_rad_s2", "slip acceleration at lock-up [rad/s^2]"),
+    ("min_engine_speed_rpm", "min engine speed [rpm]"),
+    ("max_engine_speed_rpm", "max engine speed [rpm]"),
+    ("engine_stalled", "engine stalled"),
+    ("peak_shaft_torque_Nm", "peak driveline torque, primary frame [N m]"),
+    ("peak_axle_torque_Nm", "peak half-shaft torque, wheel frame [N m]"),
+    ("n_backlash_impacts", "backlash impacts"),
+    ("n_backlash_crossings", "backlash crossings"),
+    ("n_events", "events"),
+    ("n_samples", "samples"),
+    ("energy_residual_rel", "energy residual (relative)"),
+)
+
+
+def _summary_md(
+    runs: list[tuple[str, str, dict[str, Any]]], params: DrivetrainParams, quick: bool
+) -> str:
+    scen = builtin_scenarios()
+    lines = [
+        "# drivetrain-ctrl demo",
+        "",
+        f"Parameter set **{params.name}**: {params.description}.",
+        "",
+        "Runs: the built-in scenarios on the "
+        + ("reduced model only (`--quick`)." if quick else "full and the reduced model."),
+        "",
+    ]
+    for name, sc in scen.items():
+        lines.append(f"- `{name}` (gear {sc.gear}, {sc.t_end:g} s): {sc.description}")
+    lines += ["", "## Figures of merit", ""]
+    heads = [f"{s} / {k}" for s, k, _ in runs]
+    lines.append("| metric | " + " | ".join(heads) + " |")
+    lines.append("|---|" + "---:|" * len(runs))
+    for key, label in _SUMMARY_ROWS:
+        cells = []
+        for _, _, r in runs:
+            v = r["metrics"].get(key)
+            cells.append(_fmt(v, ".2e" if key == "energy_residual_rel" else ".4g"))
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    cells = [_fmt(r["timing"]["wall_time_s"], ".3g") for _, _, r in runs]
+    lines.append("| simulation wall time [s] | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Driveline torque: gear mesh (full model) or lumped shaft (reduced model), referred to",
+        "the primary shaft. The reduced model has no half-shafts. Lurch is the jump of the",
+        "vehicle acceleration at lock-up (about zero with a compliant driveline).",
+        "",
+        "## Outputs",
+        "",
+        "| run | overview | energy | data |",
+        "|---|---|---|---|",
+    ]
+    for s, k, _ in runs:
+        d = f"{s}-{k}"
+        lines.append(
+            f"| {s} / {k} | [overview.png]({d}/overview.png) | [energy.png]({d}/energy.png) "
+            f"| [trajectory.csv]({d}/trajectory.csv), [events.csv]({d}/events.csv), "
+            f"[metrics.json]({d}/metrics.json) |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    params = _load_params(args.params)
+    out = Path(args.out)
+    kinds = ("reduced",) if args.quick else MODELS
+    jobs = [(s, k) for s in builtin_scenarios().values() for k in kinds]
+    print(
+        f"{PROG} demo: {len(jobs)} runs on parameter set {params.name!r} into {out}/ "
+        "(the first run compiles the simulation kernels unless they are cached)",
+        file=sys.stderr,
+    )
+    done: list[tuple[str, str, dict[str, Any]]] = []
+    tic = time.perf_counter()
+    bar = tqdm(jobs, desc="demo", unit="run", file=sys.stderr, dynamic_ncols=True)
+    for sc, kind in bar:
+        bar.set_postfix_str(f"{sc.name} / {kind}")
+        r = run_simulation(sc, params, kind, out / f"{sc.name}-{kind}")
+        done.append((sc.name, kind, r))
+    bar.close()
+    try:
+        (out / "summary.md").write_text(_summary_md(done, params, args.quick), encoding="utf-8")
+    except OSError as exc:
+        raise RunError(f"cannot write {out / 'summary.md'}: {exc}") from None
+    for _, _, r in done:
+        print(_summary_line(r["metrics"], r["timing"]))
+    print(f"done in {time.perf_counter() - tic:.1f} s; summary: {out / 'summary.md'}")
+    for s, k, _ in done:
+        print(f"  {out / f'{s}-{k}'}/")
+    return 0
+
+
+def _value_text(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, Table):
+        n = len(v.x)
+        if n == 1:
+            return f"constant {v.y[0]:.6g}"
+        xs = ", ".join(f"{a:.6g}" for a in v.x)
+        ys = ", ".join(f"{b:.6g}" for b in v.y)
+        return f"table ({n} points) x = [{xs}], y = [{ys}]"
+    if isinstance(v, tuple):
+        return "[" + ", ".join(f"{a:.6g}" if isinstance(a, float) else str(a) for a in v) + "]"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def _cmd_params_show(args: argparse.Namespace) -> int:
+    p = _load_params(args.source)
+    print(f"parameter set {p.name!r}: {p.description}")
+    print("SI units; frame = shaft or body the value is referred to.")
+    rows: list[tuple[str, str, str, str, str]] = []
+    for path in field_paths():
+        info = field_info(path)
+        unit = info["unit"]
+        if info["kind"] == "table":
+            unit = f"{info['y_name']} [{info['y_unit']}] vs {info['x_name']} [{info['x_unit']}]"
+        rows.append((path, _value_text(p.get(path)), unit, info["frame"], info["description"]))
+    w_path = max(len(r[0]) for r in rows)
+    w_val = min(max(len(r[1]) for r in rows if len(r[1]) <= 24), 24)
+    section = ""
+    prov = p.provenance_dict()
+    for path, val, unit, frame, desc in rows:
+        sec = path.split(".", 1)[0]
+        if sec != section:
+            print(f"\n[{sec}]")
+            section = sec
+        if len(val) > w_val:
+            print(f"  {path:<{w_path}}  {unit}  (frame: {frame})")
+            for line in textwrap.wrap(val, 96):
+                print(f"      {line}")
+        else:
+            print(f"  {path:<{w_path}}  {val:>{w_val}}  {unit:<12} frame: {frame:<9}  {desc}")
+        if args.provenance and path in prov:
+            for line in textwrap.wrap(f"source: {prov[path]}", 96):
+                print(f"      {line}")
+    return 0
+
+
+def _cmd_params_list(args: argparse.Namespace) -> int:
+    for name in available_parameter_sets():
+        p = _load_params(name)
+        print(f"{name}: {p.description}")
+    return 0
+
+
+def _cmd_scenarios_list(args: argparse.Namespace) -> int:
+    for name, sc in builtin_scenarios().items():
+        print(f"{name} (gear {sc.gear}, t_end {sc.t_end:g} s)")
+        for line in textwrap.wrap(sc.description, 92):
+            print(f"    {line}")
+    print("(or give --scenario FILE.toml; format: drivetrain_ctrl.scenarios module docstring)")
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------
+# parser
+# ------------------------------------------------------------------------------------------------
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``drivetrain-ctrl``."""
+    ap = argparse.ArgumentParser(
+        prog=PROG,
+        description="Simulate a car dry-clutch drivetrain (exact switching, full/reduced model).",
+    )
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    sp = sub.add_parser("simulate", help="simulate one scenario; write CSV, JSON and PNG files")
+    sp.add_argument("--scenario", required=True, help="built-in scenario name or a .toml file")
+    sp.add_argument("--model", choices=MODELS, default="full", help="model (default: full)")
+    sp.add_argument(
+        "--params",
+        default=DEFAULT_PARAMS,
+        help=f"parameter set name or .toml file (default: {DEFAULT_PARAMS})",
+    )
+    sp.add_argument("--out", required=True, help="output directory (created if needed)")
+    sp.add_argument("--rtol", type=_positive_float, default=None, help="relative tolerance")
+    sp.add_argument(
+        "--t-end", type=_positive_float, default=None, help="end time [s] (default: scenario's)"
+    )
+    sp.set_defaults(func=_cmd_simulate)
+
+    dp = sub.add_parser("demo", help="run the built-in scenarios on both models; summary.md")
+    dp.add_argument("--out", required=True, help="output directory")
+    dp.add_argument("--quick", action="store_true", help="reduced model only (a few seconds)")
+    dp.add_argument("--params", default=DEFAULT_PARAMS, help="parameter set name or .toml file")
+    dp.set_defaults(func=_cmd_demo)
+
+    pp = sub.add_parser("params", help="show or list parameter sets")
+    psub = pp.add_subparsers(dest="params_command", metavar="ACTION", required=True)
+    ps = psub.add_parser("show", help="print a parameter set with units and frames")
+    ps.add_argument("source", nargs="?", default=DEFAULT_PARAMS, help="set name or .toml file")
+    ps.add_argument("--provenance", action="store_true", help="also print the source of values")
+    ps.set_defaults(func=_cmd_params_show)
+    pl = psub.add_parser("list", help="list the built-in parameter sets")
+    pl.set_defaults(func=_cmd_params_list)
+
+    sc = sub.add_parser("scenarios", help="list the built-in scenarios")
+    ssub = sc.add_subparsers(dest="scenarios_command", metavar="ACTION", required=True)
+    sl = ssub.add_parser("list", help="list the built-in scenarios")
+    sl.set_defaults(func=_cmd_scenarios_list)
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``drivetrain-ctrl`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(None if argv is None else list(argv))
+    except SystemExit as exc:  # argparse: --help (0) or a usage error (2)
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 2)
+    try:
+        return int(args.func(args))
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

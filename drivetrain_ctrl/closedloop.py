@@ -1,0 +1,279 @@
+"""Controllers declared once: an LTI realisation plus explicit nonlinear blocks.
+
+A :class:`Controller` is used both by the linear analysis (its ``lti`` is a python-control
+``StateSpace``) and by the nonlinear simulation (``simulate(..., controller=c)`` runs it inside the
+compiled loop). The signal chain, in order:
+
+1. measurement ``e = sum(coef * source)``, a source being a state name of the model (e.g.
+   ``"omega_engine"``) or a reference signal (``"ref"``, given as :class:`Signal`);
+2. the SISO LTI block ``lti`` (continuous; or discrete with sample period ``lti.dt`` [s], held
+   between samples, with a transport delay of ``delay_samples`` samples);
+3. sign switching: times ``sign(x[a] - x[b])`` for ``sign_of = (a, b)`` state names;
+4. ``offset``; 5. ``lookup`` table; 6. ``saturation = (lo, hi)``;
+7. latch-and-ramp: when friction element ``latch.element`` enters mode ``latch.mode``, the output
+   is frozen and ramped at ``latch.rate`` [unit/s] to ``latch.target``;
+8. rate limiter ``rate_limit = (rate [unit/s], gain [1/s])``: ``r' = clip(gain (v - r), -rate, rate)``;
+9. second-order actuator ``omega_a^2 / (s^2 + 2 delta_a omega_a s + omega_a^2)`` (paper Sec. IV);
+the result drives plant input ``output``. Every switch of a nonlinear block (sign change, knee,
+saturation and rate-limit limits, end of the ramp) is an event of the simulation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import control
+import numpy as np
+from numpy.typing import NDArray
+
+from . import kernels as K
+from .chain import PwlTable
+from .model import Model
+from .signals import Signal, constant
+
+__all__ = ["Actuator", "LatchRamp", "Controller", "law6_controller", "pi_controller"]
+
+
+@dataclass(frozen=True, slots=True)
+class Actuator:
+    """Second-order actuator: natural frequency ``omega`` [rad/s], damping ratio ``delta`` [-]."""
+
+    omega: float
+    delta: float
+
+    def __post_init__(self) -> None:
+        for nm in ("omega", "delta"):
+            v = getattr(self, nm)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"Actuator.{nm} = {v!r}: must be a finite number > 0")
+
+    def lti(self) -> control.StateSpace:
+        """The actuator as a python-control transfer function realisation."""
+        w, d = self.omega, self.delta
+        return control.ss(control.tf([w * w], [1.0, 2 * d * w, w * w]))
+
+
+@dataclass(frozen=True, slots=True)
+class LatchRamp:
+    """When friction ``element`` enters ``mode`` (e.g. the clutch 'stuck'), freeze the output and
+    ramp it at ``rate`` [unit/s] to ``target``."""
+
+    element: str
+    mode: str
+    rate: float
+    target: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Controller:
+    """A controller: LTI block plus listed nonlinear blocks (see the module docstring)."""
+
+    lti: control.StateSpace
+    measurement: tuple[tuple[float, str], ...]
+    output: str
+    reference: Signal | None = None
+    delay_samples: int = 0
+    sign_of: tuple[str, str] | None = None
+    offset: float = 0.0
+    lookup: PwlTable | None = None
+    saturation: tuple[float, float] | None = None
+    latch: LatchRamp | None = None
+    rate_limit: tuple[float, float] | None = None
+    actuator: Actuator | None = None
+    name: str = "controller"
+    initial_lti_state: tuple[float, ...] | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        sys = self.lti
+        if not isinstance(sys, control.StateSpace):
+            raise TypeError(f"{self.name}.lti must be a control.StateSpace, got {type(sys).__name__}")
+        if sys.ninputs != 1 or sys.noutputs != 1:
+            raise ValueError(f"{self.name}.lti must be SISO, got {sys.ninputs} in / {sys.noutputs} out")
+        if not self.measurement:
+            raise ValueError(f"{self.name}.measurement: needs at least one (coef, source) term")
+        if self.delay_samples < 0 or (self.delay_samples and not self.is_discrete):
+            raise ValueError(
+                f"{self.name}.delay_samples = {self.delay_samples}: needs a discrete lti and >= 0"
+            )
+        if self.saturation is not None and not self.saturation[0] < self.saturation[1]:
+            raise ValueError(f"{self.name}.saturation = {self.saturation}: needs lo < hi")
+        if self.rate_limit is not None and not (self.rate_limit[0] > 0 and self.rate_limit[1] > 0):
+            raise ValueError(f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0")
+        for c, src in self.measurement:
+            if src == "ref" and self.reference is None:
+                raise ValueError(f"{self.name}.measurement uses 'ref' but no reference is given")
+            if not math.isfinite(c):
+                raise ValueError(f"{self.name}.measurement coefficient {c!r} for {src!r}")
+
+    @property
+    def is_discrete(self) -> bool:
+        return bool(self.lti.dt) and self.lti.dt is not True
+
+    def compile(self, model: Model) -> tuple[K.CtrlData, NDArray[np.float64], NDArray[np.float64], list[Signal]]:
+        """Arrays for the compiled loop: (CtrlData, discrete state, initial states, reference signals)."""
+        nu = len(model.input_names)
+        m_kind, m_idx, m_coef = [], [], []
+        for c, src in self.measurement:
+            if src == "ref":
+                m_kind.append(1)
+                m_idx.append(nu)
+            else:
+                m_kind.append(0)
+                m_idx.append(model.state_index(src))
+            m_coef.append(float(c))
+        A = np.atleast_2d(np.asarray(self.lti.A, dtype=float))
+        B = np.asarray(self.lti.B, dtype=float).reshape(-1)
+        C = np.asarray(self.lti.C, dtype=float).reshape(-1)
+        Dm = np.asarray(self.lti.D, dtype=float).reshape(-1)[:1]
+        nstate = B.shape[0]
+        if A.shape != (nstate, nstate):
+            A = A.reshape(nstate, nstate)
+        ci = np.zeros(13, dtype=np.int64)
+        cf = np.zeros(10)
+        ci[K.CI_OUT] = model.input_names.index(self.output)
+        disc = self.is_discrete
+        ci[K.CI_DISC] = int(disc)
+        ci[K.CI_NC] = 0 if disc else nstate
+        ci[K.CI_ND] = nstate if disc else 0
+        ci[K.CI_NDELAY] = self.delay_samples
+        ci[K.CI_SA] = model.state_index(self.sign_of[0]) if self.sign_of else -1
+        ci[K.CI_SB] = model.state_index(self.sign_of[1]) if self.sign_of else -1
+        if self.latch is not None:
+            f = model.friction_index(self.latch.element)
+            names = model.frictions[f].mode_names
+            if self.latch.mode not in names:
+                raise ValueError(f"{self.name}.latch.mode = {self.latch.mode!r}: not in {names}")
+            ci[K.CI_LF] = f
+            ci[K.CI_LM] = names.index(self.latch.mode)
+            cf[K.CF_LR] = self.latch.rate
+            cf[K.CF_LT] = self.latch.target
+        else:
+            ci[K.CI_LF] = -1
+        ci[K.CI_ACT] = int(self.actuator is not None)
+        ci[K.CI_RL] = int(self.rate_limit is not None)
+        ci[K.CI_SAT] = int(self.saturation is not None)
+        if self.lookup is not None:
+            from .model import _pwl_clamped
+
+            b_, s_, o_ = _pwl_clamped(self.lookup)
+            ci[K.CI_LKNB] = len(b_)
+            lk_b = np.array(b_ + [np.inf])
+            lk_s = np.array(s_)
+            lk_o = np.array(o_)
+        else:
+            ci[K.CI_LKNB] = -1
+            lk_b = np.zeros(1)
+            lk_s = np.zeros(1)
+            lk_o = np.zeros(1)
+        cf[K.CF_TS] = float(self.lti.dt) if disc else 0.0
+        cf[K.CF_OFF] = self.offset
+        if self.saturation is not None:
+            cf[K.CF_LO], cf[K.CF_HI] = self.saturation
+        if self.rate_limit is not None:
+            cf[K.CF_RLR], cf[K.CF_RLG] = self.rate_limit
+        if self.actuator is not None:
+            cf[K.CF_AW] = self.actuator.omega
+            cf[K.CF_AZ] = self.actuator.delta
+        Cd = K.CtrlData(
+            np.array(m_kind, dtype=np.int64),
+            np.array(m_idx, dtype=np.int64),
+            np.array(m_coef),
+            A,
+            B,
+            C,
+            Dm if Dm.size else np.zeros(1),
+            ci,
+            cf,
+            lk_b,
+            lk_s,
+            lk_o,
+        )
+        cs = np.zeros(K.CS_XD + ci[K.CI_ND] + self.delay_samples + 1)
+        x_lti = np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        if disc:
+            cs[K.CS_XD : K.CS_XD + nstate] = x_lti
+        y0: list[float] = [] if disc else list(x_lti)
+        refs = [self.reference if self.reference is not None else constant(0.0)]
+        return Cd, cs, np.zeros(0), refs  # initial states completed by initial_states()
+
+    def initial_states(self, model: Model, x0: NDArray[np.float64], u0: float) -> NDArray[np.float64]:
+        """Initial continuous controller states: LTI state, rate limiter and actuator at ``u0``
+        (the value of the driven input at the start, e.g. the pedal position [m])."""
+        disc = self.is_discrete
+        nstate = np.asarray(self.lti.B).shape[0]
+        x_lti = np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        out: list[float] = [] if disc else list(x_lti)
+        if self.rate_limit is not None:
+            out.append(u0)
+        if self.actuator is not None:
+            out += [u0, 0.0]
+        return np.array(out, dtype=float)
+
+
+def law6_controller(
+    params: Any,
+    *,
+    reference: Signal,
+    engine_state: str = "omega_engine",
+    driven_state: str = "omega_disc",
+    engage_rate: float | None = 0.05,
+) -> Controller:
+    """The paper's law (6): ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``.
+
+    ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
+    ``params.actuator`` (omega_a, delta_a) with the stroke ``[x_min, x_max]`` as saturation. When the
+    clutch locks, the pedal is ramped at ``engage_rate`` [m/s] to fully engaged (``None``: no
+    latch). ``driven_state`` is the clutch's driven side (``omega_disc`` in the full model,
+    ``omega_primary`` in the reduced one).
+    """
+    lw, act = params.law6, params.actuator
+    x_engaged = float(params.clutch.pedal_map.x[0])
+    return Controller(
+        name="law6",
+        lti=control.ss([], [], [], [[lw.k_r]]),
+        measurement=((1.0, "ref"), (-1.0, engine_state)),
+        reference=reference,
+        output="pedal",
+        sign_of=(engine_state, driven_state),
+        offset=lw.x_r0,
+        saturation=(act.x_min, act.x_max),
+        latch=LatchRamp("clutch", "stuck", engage_rate, x_engaged) if engage_rate else None,
+        actuator=Actuator(act.omega_a, act.delta_a),
+    )
+
+
+def pi_controller(
+    params: Any,
+    *,
+    reference: Signal,
+    kp: float,
+    ki: float,
+    dt: float | None = None,
+    delay_samples: int = 0,
+    engine_state: str = "omega_engine",
+    driven_state: str = "omega_disc",
+) -> Controller:
+    """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``.
+
+    Continuous, or discrete (``dt`` [s], forward-Euler integrator) with ``delay_samples``.
+    """
+    if dt is None:
+        lti = control.ss([[0.0]], [[1.0]], [[ki]], [[kp]])
+    else:
+        lti = control.ss([[1.0]], [[dt]], [[ki]], [[kp]], dt)
+    lw, act = params.law6, params.actuator
+    return Controller(
+        name="pi",
+        lti=lti,
+        measurement=((1.0, "ref"), (-1.0, engine_state)),
+        reference=reference,
+        output="pedal",
+        sign_of=(engine_state, driven_state),
+        offset=lw.x_r0,
+        saturation=(act.x_min, act.x_max),
+        latch=LatchRamp("clutch", "stuck", 0.05, float(params.clutch.pedal_map.x[0])),
+        actuator=Actuator(act.omega_a, act.delta_a),
+        delay_samples=delay_samples,
+    )

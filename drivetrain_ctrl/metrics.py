@@ -1,0 +1,352 @@
+"""Clutch-engagement figures of merit of a simulation run (JSON-ready, deterministic).
+
+:func:`engagement_metrics` condenses a :class:`~drivetrain_ctrl.simulate.SimulationResult` into a
+flat dict of the standard figures of merit of a dry-clutch engagement (Della Gatta et al., "A survey
+on modeling and engagement control for automotive dry clutch", Mechatronics 55 (2018)): engagement
+(lock-up) time, friction energy dissipated in the clutch, lurch and jerk of the vehicle, engine
+stall margin and flare, peak driveline torque and backlash activity.
+
+Every float is rounded to :data:`SIGNIFICANT_DIGITS` significant digits, so that two runs of the
+same simulation give byte-identical JSON; a figure that is undefined for a run (no lock-up, no
+axle in the reduced model, ...) is ``None`` (JSON ``null``). Key suffixes carry the unit
+(``_s``, ``_J``, ``_kmh``, ``_rpm``, ``_m_s2``, ``_m_s3``, ``_Nm``, ``_rad_s2``).
+
+Accelerations are evaluated from the model's right-hand side at the samples (not by
+differentiating the sampled speed twice): on every sample interval ``[t_k, t_k+1]`` the integrator
+holds the mode of sample ``k``, so the acceleration at its start is ``rhs(x_k, u_k, mode_k)`` and
+at its end the left limit ``rhs(x_k+1, u_k+1, mode_k)``. Jerk is the difference quotient of these
+over the interval, so a jump of the acceleration at a mode change (an event) is not turned into a
+spurious huge jerk; such jumps are reported separately (``lurch_m_s2`` at lock-up).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .model import Mode
+from .units import m_s_to_kmh, rad_s_to_rpm
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .model import Model
+    from .simulate import SimulationResult
+
+__all__ = [
+    "SIGNIFICANT_DIGITS",
+    "MIN_INTERVAL_S",
+    "METRIC_KEYS",
+    "engagement_metrics",
+    "state_accelerations",
+    "jerk",
+    "round_sig",
+    "json_ready",
+]
+
+F64 = NDArray[np.float64]
+
+
+class DrivetrainLike(Protocol):
+    """What :func:`engagement_metrics` uses of a :class:`~drivetrain_ctrl.drivetrain.Drivetrain`."""
+
+    @property
+    def kind(self) -> str: ...
+
+    @property
+    def gear(self) -> int: ...
+
+
+#: significant digits kept for every float of :func:`engagement_metrics`
+SIGNIFICANT_DIGITS: int = 9
+
+#: sample intervals shorter than this [s] are skipped when differencing accelerations (they only
+#: occur at events located to ~1e-13 s, where a difference quotient is round-off)
+MIN_INTERVAL_S: float = 1e-12
+
+#: the keys of :func:`engagement_metrics`, always all present
+METRIC_KEYS: tuple[str, ...] = (
+    "model",
+    "gear",
+    "status",
+    "t_end_s",
+    "n_samples",
+    "n_events",
+    "lockup_time_s",
+    "clutch_energy_J",
+    "work_in_J",
+    "energy_residual_rel",
+    "final_vehicle_speed_kmh",
+    "max_vehicle_accel_m_s2",
+    "max_vehicle_jerk_m_s3",
+    "lurch_m_s2",
+    "lockup_slip_accel_rad_s2",
+    "min_engine_speed_rpm",
+    "max_engine_speed_rpm",
+    "engine_stalled",
+    "peak_axle_torque_Nm",
+    "peak_shaft_torque_Nm",
+    "n_backlash_impacts",
+    "n_backlash_crossings",
+)
+
+
+def round_sig(value: float | None, digits: int = SIGNIFICANT_DIGITS) -> float | None:
+    """``value`` rounded to ``digits`` significant digits; None for None, NaN or +-inf.
+
+    ``-0.0`` becomes ``0.0`` so that the JSON text does not depend on the sign of a zero.
+    """
+    if value is None:
+        return None
+    v = float(value)
+    if not math.isfinite(v):
+        return None
+    if v == 0.0:
+        return 0.0
+    return float(f"{v:.{digits}g}")
+
+
+def json_ready(obj: Any, digits: int = SIGNIFICANT_DIGITS) -> Any:
+    """``obj`` with NumPy scalars converted and every float rounded by :func:`round_sig`
+    (recursively through dicts, lists and tuples; tuples become lists)."""
+    if isinstance(obj, dict):
+        return {str(k): json_ready(v, digits) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [json_ready(v, digits) for v in obj]
+    if isinstance(obj, bool | np.bool_):
+        return bool(obj)
+    if isinstance(obj, int | np.integer):
+        return int(obj)
+    if isinstance(obj, float | np.floating):
+        return round_sig(float(obj), digits)
+    return obj
+
+
+def _mode(res: SimulationResult, i: int) -> Mode:
+    return Mode(tuple(int(v) for v in res.fm[i]), tuple(int(v) for v in res.reg[i]))
+
+
+def state_accelerations(res: SimulationResult) -> tuple[F64, F64]:
+    """Time derivatives of all states at every sample, from the model's right-hand side.
+
+    Returns ``(right, left)``, both (N, nx) in state units per second (rad/s^2 for a rotational
+    speed, m/s^2 for a translational one): ``right[i] = rhs(x_i, u_i, mode_i)`` (the derivative
+    just after ``t_i``) and ``left[i] = rhs(x_i, u_i, mode_{i-1})`` (just before ``t_i``, the mode
+    the integrator held on ``[t_{i-1}, t_i]``; ``left[0] = right[0]``). They differ only at
+    samples where the mode changed (events).
+    """
+    model = res.model
+    n = res.t.shape[0]
+    right = np.empty((n, model.nx))
+    left = np.empty((n, model.nx))
+    prev: Mode | None = None
+    for i in range(n):
+        mode = _mode(res, i)
+        right[i] = model.rhs(res.x[i], res.u[i], mode)
+        if prev is None or prev == mode:
+            left[i] = right[i]
+        else:
+            left[i] = model.rhs(res.x[i], res.u[i], prev)
+        prev = mode
+    return right, left
+
+
+def jerk(t: F64, right: F64, left: F64, *, min_interval: float = MIN_INTERVAL_S) -> F64:
+    """Difference quotient of an acceleration over each sample interval.
+
+    ``t`` (N,) [s]; ``right``/``left`` (N,) accelerations just after / just before each sample (see
+    :func:`state_accelerations`). Returns ``(left[k+1] - right[k]) / (t[k+1] - t[k])`` for every
+    interval longer than ``min_interval`` [s] (shorter ones, in particular zero-length ones, are
+    skipped), in acceleration units per second (m/s^3 for a vehicle speed).
+    """
+    t = np.asarray(t, dtype=float)
+    dt = np.diff(t)
+    keep = dt > min_interval
+    da = np.asarray(left, dtype=float)[1:] - np.asarray(right, dtype=float)[:-1]
+    return np.asarray(da[keep] / dt[keep], dtype=float)
+
+
+def _friction_coupling(model: Model, name: str) -> tuple[int, int] | None:
+    """(friction index, coupling index) of coupling friction element ``name``, or None."""
+    for f, fi in enumerate(model.frictions):
+        if fi.name == name and fi.kind == "coupling":
+            return f, fi.index
+    return None
+
+
+def _coupling_index(model: Model, name: str) -> int | None:
+    for c, cp in enumerate(model.chain.couplings):
+        if cp.name == name:
+            return c
+    return None
+
+
+def _backlash_counts(res: SimulationResult) -> tuple[int, int]:
+    """(impacts, crossings) summed over every spring with backlash.
+
+    An impact is a ``gap -> contact`` transition; a crossing a traversal of the whole gap, i.e. a
+    change of the contact side (``contact-`` ... ``contact+`` or back).
+    """
+    impacts = 0
+    crossings = 0
+    for ti in res.model.tables:
+        if ti.region_names is None:
+            continue
+        for ev in res.events:
+            if ev.element == ti.name and ev.from_mode == "gap" and ev.to_mode != "gap":
+                impacts += 1
+        side = 0
+        for name in res.mode_series(ti.name):
+            s = 1 if name.endswith("+") else -1 if name.endswith("-") else 0
+            if s != 0:
+                if side != 0 and s != side:
+                    crossings += 1
+                side = s
+    return impacts, crossings
+
+
+def _max_abs(a: F64) -> float | None:
+    return float(np.max(np.abs(a))) if a.size else None
+
+
+def engagement_metrics(
+    res: SimulationResult,
+    dt: DrivetrainLike | None = None,
+    *,
+    vehicle: str = "v_vehicle",
+    engine: str = "omega_engine",
+    clutch: str = "clutch",
+) -> dict[str, Any]:
+    """Figures of merit of run ``res`` of drivetrain ``dt``; a flat, JSON-ready dict.
+
+    Keys (:data:`METRIC_KEYS`, always all present; None where undefined):
+
+    ``model``, ``gear``
+        ``dt.kind`` (``"full"`` / ``"reduced"``) and the engaged gear (None without ``dt``).
+    ``status``, ``t_end_s``, ``n_samples``, ``n_events``
+        Simulation status, final time [s], number of samples and of events (mode changes).
+    ``lockup_time_s``
+        Time [s] of the final clutch lock-up (``res.lockup_time(clutch)``); None if the clutch
+        does not end locked or never slipped.
+    ``clutch_energy_J``
+        Energy [J] dissipated by the clutch friction, ``integral of T_clutch * slip dt``.
+    ``work_in_J``, ``energy_residual_rel``
+        Work supplied by the sources [J]; relative energy-balance residual [-]
+        (``res.energy_residual_rel``). None if energies were not integrated.
+    ``final_vehicle_speed_kmh``
+        Vehicle speed at the end [km/h].
+    ``max_vehicle_accel_m_s2``
+        Largest |vehicle acceleration| [m/s^2].
+    ``max_vehicle_jerk_m_s3``
+        Largest |jerk| [m/s^3]: difference quotient of the acceleration (from the model rhs) over
+        the sample intervals, inside modes (see the module docstring; comfort target < 10 m/s^3).
+    ``lurch_m_s2``
+        Jump of the vehicle acceleration at lock-up [m/s^2], after minus before; None without
+        lock-up. With a compliant driveline (both models here) the vehicle is connected to the
+        clutch through springs, so its acceleration is continuous and this is ~0; the lock-up
+        shock then shows as jerk and shuffle.
+    ``lockup_slip_accel_rad_s2``
+        Slip acceleration ``d(omega_in - r omega_out)/dt`` [rad/s^2] just before lock-up (the
+        "no-lurch" condition asks for 0); None without lock-up.
+    ``min_engine_speed_rpm``, ``max_engine_speed_rpm``
+        Lowest engine speed (stall margin) and highest (flare) [rpm].
+    ``engine_stalled``
+        True if the engine's ground friction is ever in its standstill mode.
+    ``peak_axle_torque_Nm``
+        Largest |half-shaft torque| [N m] in the wheel frame (``axle`` coupling torque, secondary
+        frame, times its ratio D_c); None for the reduced model, which has no axle.
+    ``peak_shaft_torque_Nm``
+        Largest |driveline torque| [N m] in the primary-shaft frame, comparable between models:
+        the gear-mesh coupling ``backlash`` of the full model, the lumped shaft ``backlash``
+        (stiffness h_t) of the reduced model. Wheel-frame equivalent: times ``dt.tau_t``.
+    ``n_backlash_impacts``, ``n_backlash_crossings``
+        Gap -> contact transitions and complete traversals of the gap (contact side changes).
+
+    ``dt`` may be None for a model not built by :class:`~drivetrain_ctrl.drivetrain.Drivetrain`
+    (e.g. a :func:`~drivetrain_ctrl.chain.two_body_clutch` test chain). ``vehicle`` and
+    ``engine`` name the speed states used for the vehicle and engine figures (for a rotational
+    ``vehicle`` state the acceleration figures are in rad/s^2, rad/s^3 and the final speed is
+    None); ``clutch`` names the clutch friction element. Figures whose state or element does not
+    exist are None.
+    """
+    model = res.model
+    names = model.state_names
+    out: dict[str, Any] = dict.fromkeys(METRIC_KEYS)
+    out["model"] = dt.kind if dt is not None else None
+    out["gear"] = int(dt.gear) if dt is not None else None
+    out["status"] = res.status
+    out["t_end_s"] = float(res.t[-1])
+    out["n_samples"] = int(res.t.shape[0])
+    out["n_events"] = len(res.events)
+
+    # clutch: lock-up, energy, slip acceleration
+    fc = _friction_coupling(model, clutch)
+    t_lock: float | None = None
+    if fc is not None:
+        t_lock = res.lockup_time(clutch)
+        out["lockup_time_s"] = t_lock
+        if res.dissipated is not None:
+            j = model.power_names().index(clutch)
+            out["clutch_energy_J"] = float(res.dissipated[-1, j])
+    if res.work_in is not None and res.dissipated is not None:
+        out["work_in_J"] = float(res.work_in[-1])
+        out["energy_residual_rel"] = res.energy_residual_rel
+
+    # accelerations (only if something needs them)
+    need_acc = vehicle in names or (fc is not None and t_lock is not None)
+    i_lock: int | None = None
+    if t_lock is not None and fc is not None:
+        # the sample recorded just after the lock-up event (several samples may share its time)
+        col = res.fm[:, fc[0]]
+        for i in range(int(np.searchsorted(res.t, t_lock, side="left")), res.t.shape[0]):
+            if res.t[i] != t_lock:
+                break
+            if i > 0 and col[i] == 0 and col[i - 1] != 0:
+                i_lock = i
+                break
+    if need_acc:
+        right, left = state_accelerations(res)
+        if vehicle in names:
+            iv = names.index(vehicle)
+            out["max_vehicle_accel_m_s2"] = _max_abs(right[:, iv])
+            out["max_vehicle_jerk_m_s3"] = _max_abs(jerk(res.t, right[:, iv], left[:, iv]))
+            if i_lock is not None:
+                out["lurch_m_s2"] = float(right[i_lock, iv] - left[i_lock, iv])
+        if fc is not None and i_lock is not None:
+            c = fc[1]
+            r = float(model.data.ratio[c])
+            out["lockup_slip_accel_rad_s2"] = float(left[i_lock, c] - r * left[i_lock, c + 1])
+
+    if vehicle in names:
+        v_end = float(res.state(vehicle)[-1])
+        if model.state_units[names.index(vehicle)] == "m/s":
+            out["final_vehicle_speed_kmh"] = float(m_s_to_kmh(v_end))
+
+    if engine in names:
+        w = res.state(engine)
+        out["min_engine_speed_rpm"] = float(rad_s_to_rpm(float(np.min(w))))
+        out["max_engine_speed_rpm"] = float(rad_s_to_rpm(float(np.max(w))))
+        stalled = False
+        body = engine.removeprefix("omega_")
+        for f, fi in enumerate(model.frictions):
+            if fi.kind == "ground" and model.chain.bodies[fi.index].name == body:
+                stalled = bool(np.any(res.fm[:, f] == 0))
+        out["engine_stalled"] = stalled
+
+    # driveline torques
+    c_axle = _coupling_index(model, "axle")
+    c_shaft = _coupling_index(model, "backlash")
+    if c_axle is not None or c_shaft is not None:
+        T = res.coupling_torques()
+        if c_axle is not None:
+            ratio = float(model.data.ratio[c_axle])
+            out["peak_axle_torque_Nm"] = float(np.max(np.abs(T[:, c_axle]))) * ratio
+        if c_shaft is not None:
+            out["peak_shaft_torque_Nm"] = float(np.max(np.abs(T[:, c_shaft])))
+
+    impacts, crossings = _backlash_counts(res)
+    out["n_backlash_impacts"] = impacts
+    out["n_backlash_crossings"] = crossings
+    result: dict[str, Any] = json_ready(out)
+    return result

@@ -1,0 +1,305 @@
+"""Figures of a simulation run (the only module of the package that imports matplotlib).
+
+:func:`plot_simulation` draws an overview (speeds, coupling torques, inputs, a strip chart of the
+modes of every friction element and backlash, event markers); :func:`plot_energy` the energy
+balance. Both build a :class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend,
+no global figure registry and nothing to close) and save it as PNG if a path is given. In Jupyter
+the returned figure displays itself; elsewhere use ``fig.savefig(...)``.
+
+Engineering units appear here only (rpm, km/h, mm); speeds of the driveline are referred to the
+gearbox primary shaft so that they can be compared on one axis.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .units import RPM_TO_RAD_S
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .model import Model
+    from .simulate import SimulationResult
+
+__all__ = ["plot_simulation", "plot_energy", "DPI"]
+
+F64 = NDArray[np.float64]
+
+#: resolution of saved PNGs [dots per inch]
+DPI: int = 120
+
+# colours of the mode codes: stuck, slip+, slip-, open (backlash: contact-, gap, contact+ mapped)
+_MODE_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d9d9d9")
+_MODE_LABELS = (
+    "stuck / grip / holding / standstill",
+    "slip+ / moving+ / contact+",
+    "slip- / moving- / contact-",
+    "open / released / free / gap",
+)
+
+
+def _new_figure(nrows: int, height_ratios: list[float], size: tuple[float, float]) -> Figure:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, layout="constrained")
+    fig.subplots(nrows, 1, sharex=True, gridspec_kw={"height_ratios": height_ratios})
+    return fig
+
+
+def _save(fig: Figure, path: str | Path | None) -> None:
+    if path is not None:
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(p, dpi=DPI, format="png")
+
+
+def _to_primary_factor(model: Model, body: int, primary: int) -> float:
+    """Factor turning the speed of ``body`` into the speed of ``primary`` it corresponds to
+    with no slip and no twist (the product of the ratios between them)."""
+    r = model.data.ratio
+    if body >= primary:
+        return float(np.prod(r[primary:body]))
+    return float(1.0 / np.prod(r[body:primary]))
+
+
+def _primary_index(model: Model) -> int:
+    names = [b.name for b in model.chain.bodies]
+    if "primary" in names:
+        return names.index("primary")
+    return min(1, len(names) - 1)
+
+
+def _runs(codes: NDArray[Any]) -> list[tuple[int, int, int]]:
+    """Runs ``(start, stop, code)`` of equal values (sample ``stop`` starts the next run)."""
+    out = []
+    n = len(codes)
+    start = 0
+    for i in range(1, n + 1):
+        if i == n or codes[i] != codes[start]:
+            out.append((start, i, int(codes[start])))
+            start = i
+    return out
+
+
+def _lockup(res: SimulationResult) -> float | None:
+    try:
+        return res.lockup_time("clutch")
+    except KeyError:
+        return None
+
+
+def _mark_lockup(axes: list[Axes], t_lock: float | None) -> None:
+    if t_lock is None:
+        return
+    for ax in axes:
+        ax.axvline(t_lock, color="k", ls=":", lw=1.0)
+
+
+def _clutch_capacity(model: Model, u: F64) -> F64 | None:
+    """Kinetic clutch capacity at zero slip [N m] at the samples (None if no such element)."""
+    for cp in model.chain.couplings:
+        fr = cp.friction
+        if fr is None or fr.name != "clutch":
+            continue
+        if fr.capacity_input is None:
+            return np.full(u.shape[0], fr.scale)
+        ui = model.input_names.index(fr.capacity_input)
+        base = u[:, ui]
+        if fr.capacity_table is not None:
+            base = np.interp(base, fr.capacity_table.x, fr.capacity_table.y)
+        return np.asarray(fr.scale * base, dtype=float)
+    return None
+
+
+def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Figure:
+    """Overview of run ``res``; saved as PNG (``DPI``) to ``path`` if given. Returns the figure.
+
+    Panels: (1) speeds [rpm] of the engine, the clutch disc / primary shaft and the wheels and
+    vehicle referred to the primary shaft (right axis: vehicle speed [km/h] for the same no-slip
+    primary speed); (2) coupling torques [N m] referred to the primary shaft: clutch (with its
+    capacity, dashed), damper, gear mesh / lumped shaft (``backlash``), half-shafts (``axle``);
+    (3) inputs: throttle [-], clutch pedal [mm], service brake [N m]; (4) a strip chart of the mode
+    of every friction element and backlash over time, with a tick at each of its events. A dotted
+    vertical line marks the final clutch lock-up.
+    """
+    model = res.model
+    t = res.t
+    bodies = [b.name for b in model.chain.bodies]
+    moded: list[tuple[str, NDArray[Any], bool]] = [
+        (fi.name, res.fm[:, f], False) for f, fi in enumerate(model.frictions)
+    ]
+    for k, ti in enumerate(model.tables):
+        if ti.region_names is not None:
+            moded.append((ti.name, res.reg[:, k], True))
+    strip_h = 0.35 * max(len(moded), 1) + 0.4
+    fig = _new_figure(4, [3.0, 3.0, 1.8, strip_h], (11.0, 10.0 + 0.3 * len(moded)))
+    ax_w, ax_T, ax_u, ax_m = fig.axes
+    ip = _primary_index(model)
+    title = f"{model.chain.name}: status {res.status}, {len(res.events)} events"
+    t_lock = _lockup(res)
+    if t_lock is not None:
+        title += f", clutch lock-up at {t_lock:.3f} s"
+    fig.suptitle(title)
+
+    # (1) speeds
+    styles = {
+        "engine": ("engine", "C3", "-"),
+        "disc": ("clutch disc", "C1", "--"),
+        "primary": ("primary shaft", "C0", "-"),
+        "hub": ("wheels (at primary)", "C2", "-"),
+        "vehicle": ("vehicle (at primary)", "C4", ":"),
+    }
+    for i, b in enumerate(model.chain.bodies):
+        if b.name not in styles:
+            continue
+        label, col, ls = styles[b.name]
+        w = res.x[:, i] * _to_primary_factor(model, i, ip) / RPM_TO_RAD_S
+        ax_w.plot(t, w, color=col, ls=ls, lw=1.3, label=label)
+    ax_w.set_ylabel("speed [rpm]\n(primary-shaft frame)")
+    ax_w.legend(loc="best", fontsize=8, ncol=2)
+    if "vehicle" in bodies:
+        f_v = _to_primary_factor(model, bodies.index("vehicle"), ip)  # (rad/s) per (m/s)
+        kmh_per_rpm = RPM_TO_RAD_S / f_v * 3.6
+
+        def fwd(x: Any) -> Any:
+            return x * kmh_per_rpm
+
+        def inv(x: Any) -> Any:
+            return x / kmh_per_rpm
+
+        sec = ax_w.secondary_yaxis("right", functions=(fwd, inv))
+        sec.set_ylabel("vehicle speed [km/h]")
+
+    # (2) coupling torques, primary frame
+    T = res.coupling_torques()
+    labels = {
+        "clutch": ("clutch", "C3"),
+        "damper": ("damper", "C1"),
+        "backlash": ("gear mesh / shaft", "C0"),
+        "axle": ("half-shafts", "C2"),
+    }
+    for c, cp in enumerate(model.chain.couplings):
+        if cp.name not in labels:
+            continue
+        label, col = labels[cp.name]
+        # torque in the frame of body c; referred to the primary shaft: divide by the speed factor
+        fac = _to_primary_factor(model, c, ip)
+        ax_T.plot(t, T[:, c] / fac, color=col, lw=1.2, label=label)
+    cap = _clutch_capacity(model, res.u)
+    if cap is not None:
+        ax_T.plot(t, cap, color="C3", ls="--", lw=0.8, alpha=0.7, label="clutch capacity")
+    ax_T.axhline(0.0, color="0.5", lw=0.5)
+    ax_T.set_ylabel("torque [N m]\n(primary-shaft frame)")
+    ax_T.legend(loc="best", fontsize=8, ncol=2)
+
+    # (3) inputs
+    inputs = list(model.input_names)
+    handles = []
+    if "throttle" in inputs:
+        handles += ax_u.plot(t, res.u[:, inputs.index("throttle")], color="C3", label="throttle")
+    ax_u.set_ylabel("throttle [-]")
+    ax_u.set_ylim(-0.05, 1.05)
+    if "pedal" in inputs:
+        ax_p = ax_u.twinx()
+        handles += ax_p.plot(
+            t, 1e3 * res.u[:, inputs.index("pedal")], color="C0", label="clutch pedal"
+        )
+        ax_p.set_ylabel("pedal [mm]")
+    if "brake" in inputs and np.any(res.u[:, inputs.index("brake")] != 0.0):
+        ax_b = ax_u.twinx()
+        ax_b.spines["right"].set_position(("axes", 1.08))
+        handles += ax_b.plot(t, res.u[:, inputs.index("brake")], color="C2", ls="--", label="brake")
+        ax_b.set_ylabel("brake [N m]")
+    for j, nm in enumerate(inputs):
+        if nm not in ("throttle", "pedal", "brake"):
+            handles += ax_u.plot(t, res.u[:, j], label=nm)
+    if handles:
+        ax_u.legend(handles=handles, loc="best", fontsize=8)
+
+    # (4) mode strip chart with event ticks
+    t_hi = float(t[-1])
+    for row, (name, codes, is_backlash) in enumerate(moded):
+        y = len(moded) - 1 - row
+        for start, stop, code in _runs(codes):
+            t0 = float(t[start])
+            t1 = float(t[stop]) if stop < len(t) else t_hi
+            if is_backlash:
+                rn = model.tables[[ti.name for ti in model.tables].index(name)].region_names
+                mn = rn[code] if rn is not None else "gap"
+                ci = 1 if mn.endswith("+") else 2 if mn.endswith("-") else 3
+            else:
+                ci = code
+            ax_m.broken_barh([(t0, max(t1 - t0, 0.0))], (y - 0.35, 0.7), color=_MODE_COLORS[ci])
+        ev_t = [e.t for e in res.events if e.element == name]
+        if ev_t:
+            ax_m.plot(ev_t, [y + 0.42] * len(ev_t), "|", color="k", ms=4, mew=0.6)
+    ax_m.set_yticks(range(len(moded)), [m[0] for m in reversed(moded)], fontsize=8)
+    ax_m.set_ylim(-0.6, len(moded) - 0.4)
+    ax_m.set_xlabel("time [s]")
+    from matplotlib.patches import Patch
+
+    ax_m.legend(
+        handles=[
+            Patch(color=c, label=lab) for c, lab in zip(_MODE_COLORS, _MODE_LABELS, strict=True)
+        ],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.35 / max(strip_h, 1.0) - 0.25),
+        ncol=4,
+        fontsize=7,
+        frameon=False,
+    )
+    for ax in (ax_w, ax_T, ax_u):
+        ax.grid(True, alpha=0.3)
+    ax_m.grid(True, axis="x", alpha=0.3)
+    ax_m.set_xlim(float(t[0]), t_hi)
+    _mark_lockup([ax_w, ax_T, ax_u, ax_m], t_lock)
+    _save(fig, path)
+    return fig
+
+
+def plot_energy(res: SimulationResult, path: str | Path | None = None) -> Figure:
+    """Energy balance of run ``res`` [J]; saved as PNG to ``path`` if given. Returns the figure.
+
+    Top: change of stored energy ``E(t) - E(0)``, work supplied ``W_in`` and energy dissipated by
+    each element (elements that dissipate less than 0.1 % of the largest are left out). Bottom:
+    residual ``E(t) - E(0) - W_in + sum(E_diss)`` (zero for an exact balance).
+    """
+    fig = _new_figure(2, [3.0, 1.3], (10.0, 6.5))
+    ax, ax_r = fig.axes
+    t = res.t
+    model = res.model
+    if res.work_in is None or res.dissipated is None:
+        ax.text(0.5, 0.5, "energies were not integrated", ha="center", transform=ax.transAxes)
+        _save(fig, path)
+        return fig
+    E = res.stored_energy()
+    dE = E - E[0]
+    D = res.dissipated
+    ax.plot(t, res.work_in, color="k", lw=1.6, label="work in")
+    ax.plot(t, dE, color="C0", lw=1.6, label="stored - stored(0)")
+    final = D[-1]
+    big = float(np.max(np.abs(final))) if final.size else 0.0
+    order = np.argsort(-np.abs(final))
+    for j in order:
+        if big > 0 and abs(final[j]) >= 1e-3 * big:
+            ax.plot(t, D[:, j], lw=1.1, ls="--", label=f"dissipated: {model.power_names()[j]}")
+    ax.set_ylabel("energy [J]")
+    ax.legend(loc="best", fontsize=8, ncol=2)
+    ax.grid(True, alpha=0.3)
+    ax.set_title(f"{model.chain.name}: energy balance")
+    resid = dE - res.work_in + np.sum(D, axis=1)
+    ax_r.plot(t, resid, color="C3", lw=1.0)
+    ax_r.set_ylabel("residual [J]")
+    ax_r.set_xlabel("time [s]")
+    ax_r.grid(True, alpha=0.3)
+    ax_r.set_title(
+        f"residual (relative at the end: {res.energy_residual_rel:.2e})", fontsize=9, loc="left"
+    )
+    _save(fig, path)
+    return fig
