@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import textwrap
 import time
@@ -171,6 +172,8 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
     if isinstance(v, bool):
         return "yes" if v else "no"
     if isinstance(v, float):
+        if spec == ".4g" and 1e3 <= abs(v) < 1e9:
+            return f"{v:.0f}"
         return format(v, spec)
     return str(v)
 
@@ -327,32 +330,40 @@ def _value_text(v: Any) -> str:
 def _cmd_params_show(args: argparse.Namespace) -> int:
     p = _load_params(args.source)
     print(f"parameter set {p.name!r}: {p.description}")
-    print("SI units; frame = shaft or body the value is referred to.")
-    rows: list[tuple[str, str, str, str, str]] = []
-    for path in field_paths():
-        info = field_info(path)
-        unit = info["unit"]
-        if info["kind"] == "table":
-            unit = f"{info['y_name']} [{info['y_unit']}] vs {info['x_name']} [{info['x_unit']}]"
-        rows.append((path, _value_text(p.get(path)), unit, info["frame"], info["description"]))
-    w_path = max(len(r[0]) for r in rows)
-    w_val = min(max(len(r[1]) for r in rows if len(r[1]) <= 24), 24)
-    section = ""
+    print(
+        "SI units. frame: the shaft or body a value is referred to (engine, primary, "
+        "secondary, wheel, vehicle; '-' = none)."
+    )
     prov = p.provenance_dict()
-    for path, val, unit, frame, desc in rows:
+    paths = field_paths()
+    w_path = max(len(x) for x in paths)
+    ind = " " * 6
+    width = 100
+    section = ""
+    for path in paths:
+        info = field_info(path)
+        value = p.get(path)
         sec = path.split(".", 1)[0]
         if sec != section:
             print(f"\n[{sec}]")
             section = sec
-        if len(val) > w_val:
-            print(f"  {path:<{w_path}}  {unit}  (frame: {frame})")
-            for line in textwrap.wrap(val, 96):
-                print(f"      {line}")
+        frame = f"(frame: {info['frame']})" if info["frame"] != "-" else ""
+        if isinstance(value, Table):
+            what = (
+                f"table {info['y_name']} [{info['y_unit']}] vs {info['x_name']} [{info['x_unit']}]"
+            )
+            print(f"  {path:<{w_path}} = {what}  {frame}".rstrip())
+            lines = textwrap.wrap(
+                _value_text(value), width, initial_indent=ind + "  ", subsequent_indent=ind + "  "
+            )
+            print("\n".join(lines))
         else:
-            print(f"  {path:<{w_path}}  {val:>{w_val}}  {unit:<12} frame: {frame:<9}  {desc}")
+            unit = "" if info["unit"] == "-" else info["unit"]
+            print(f"  {path:<{w_path}} = {_value_text(value):>10} {unit:<10} {frame}".rstrip())
+        text = info["description"]
         if args.provenance and path in prov:
-            for line in textwrap.wrap(f"source: {prov[path]}", 96):
-                print(f"      {line}")
+            text += f" [source: {prov[path]}]"
+        print(textwrap.fill(text, width, initial_indent=ind, subsequent_indent=ind))
     return 0
 
 
@@ -451,6 +462,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into e.g. `head`: stop quietly
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

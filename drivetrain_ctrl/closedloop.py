@@ -88,9 +88,13 @@ class Controller:
     def __post_init__(self) -> None:
         sys = self.lti
         if not isinstance(sys, control.StateSpace):
-            raise TypeError(f"{self.name}.lti must be a control.StateSpace, got {type(sys).__name__}")
+            raise TypeError(
+                f"{self.name}.lti must be a control.StateSpace, got {type(sys).__name__}"
+            )
         if sys.ninputs != 1 or sys.noutputs != 1:
-            raise ValueError(f"{self.name}.lti must be SISO, got {sys.ninputs} in / {sys.noutputs} out")
+            raise ValueError(
+                f"{self.name}.lti must be SISO, got {sys.ninputs} in / {sys.noutputs} out"
+            )
         if not self.measurement:
             raise ValueError(f"{self.name}.measurement: needs at least one (coef, source) term")
         if self.delay_samples < 0 or (self.delay_samples and not self.is_discrete):
@@ -100,7 +104,9 @@ class Controller:
         if self.saturation is not None and not self.saturation[0] < self.saturation[1]:
             raise ValueError(f"{self.name}.saturation = {self.saturation}: needs lo < hi")
         if self.rate_limit is not None and not (self.rate_limit[0] > 0 and self.rate_limit[1] > 0):
-            raise ValueError(f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0")
+            raise ValueError(
+                f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0"
+            )
         for c, src in self.measurement:
             if src == "ref" and self.reference is None:
                 raise ValueError(f"{self.name}.measurement uses 'ref' but no reference is given")
@@ -111,7 +117,9 @@ class Controller:
     def is_discrete(self) -> bool:
         return bool(self.lti.dt) and self.lti.dt is not True
 
-    def compile(self, model: Model) -> tuple[K.CtrlData, NDArray[np.float64], NDArray[np.float64], list[Signal]]:
+    def compile(
+        self, model: Model
+    ) -> tuple[K.CtrlData, NDArray[np.float64], NDArray[np.float64], list[Signal]]:
         """Arrays for the compiled loop: (CtrlData, discrete state, initial states, reference signals)."""
         nu = len(model.input_names)
         m_kind, m_idx, m_coef = [], [], []
@@ -191,19 +199,25 @@ class Controller:
             lk_o,
         )
         cs = np.zeros(K.CS_XD + ci[K.CI_ND] + self.delay_samples + 1)
-        x_lti = np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        x_lti = (
+            np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        )
         if disc:
             cs[K.CS_XD : K.CS_XD + nstate] = x_lti
         y0: list[float] = [] if disc else list(x_lti)
         refs = [self.reference if self.reference is not None else constant(0.0)]
         return Cd, cs, np.zeros(0), refs  # initial states completed by initial_states()
 
-    def initial_states(self, model: Model, x0: NDArray[np.float64], u0: float) -> NDArray[np.float64]:
+    def initial_states(
+        self, model: Model, x0: NDArray[np.float64], u0: float
+    ) -> NDArray[np.float64]:
         """Initial continuous controller states: LTI state, rate limiter and actuator at ``u0``
         (the value of the driven input at the start, e.g. the pedal position [m])."""
         disc = self.is_discrete
         nstate = np.asarray(self.lti.B).shape[0]
-        x_lti = np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        x_lti = (
+            np.zeros(nstate) if self.initial_lti_state is None else np.array(self.initial_lti_state)
+        )
         out: list[float] = [] if disc else list(x_lti)
         if self.rate_limit is not None:
             out.append(u0)

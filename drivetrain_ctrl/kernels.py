@@ -54,6 +54,7 @@ class ChainData(NamedTuple):
     f_table: I64
     f_static: F64
     f_mu: I64
+    f_eps: F64  # (nf,) 0: exact Coulomb law; > 0: tanh(w / eps) smoothing (comparison only)
     t_nb: I64  # (nt,) number of bounds
     t_b: F64  # (nt, maxb) bounds
     t_s: F64  # (nt, maxb+1) slopes
@@ -221,7 +222,9 @@ def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> No
             if kmu >= 0:
                 r = reg[kmu]
                 F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
-            if m == SLIP_NEG:
+            if D.f_eps[f] > 0.0:
+                F *= np.tanh(w / D.f_eps[f])
+            elif m == SLIP_NEG:
                 F = -F
             tau[i] -= F
             if coupled:
@@ -310,7 +313,10 @@ def rhs_into(
                 r = reg[kmu]
                 F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
             # s w, not |w|: the smooth extension of the mode a stage may sample past w = 0
-            pdf = F * w if mf == SLIP_POS else -F * w
+            if D.f_eps[f] > 0.0:
+                pdf = F * np.tanh(w / D.f_eps[f]) * w
+            else:
+                pdf = F * w if mf == SLIP_POS else -F * w
         pd[n + m + f] = pdf
     return p_in
 
@@ -478,6 +484,8 @@ def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) ->
             for k in range(n):
                 lam += Lam[f, k] * tau[k]
             g[f] = D.f_static[f] * cap - abs(lam)
+        elif D.f_eps[f] > 0.0:
+            g[f] = np.inf
         elif m == SLIP_POS:
             g[f] = w
         else:
@@ -550,7 +558,9 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
         cap = capacity(D, f, u, reg)
         caps[f] = cap
         w = rel_speed(D, f, x)
-        if cap <= 0.0:
+        if D.f_eps[f] > 0.0:
+            fm[f] = SLIP_POS  # smoothed: one smooth mode, never stuck
+        elif cap <= 0.0:
             fm[f] = OPEN
         elif abs(w) > tol:
             fm[f] = SLIP_POS if w > 0 else SLIP_NEG
@@ -600,6 +610,16 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
 
 
 @jit
+def kinetic_torque(D: ChainData, f: int, x: F64, u: F64, fm: I64, reg: I64) -> float:
+    """Signed friction torque of a slipping element (tanh law if smoothed) [N m or N]."""
+    w = rel_speed(D, f, x)
+    F = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg)
+    if D.f_eps[f] > 0.0:
+        return F * np.tanh(w / D.f_eps[f])
+    return F if fm[f] == SLIP_POS else -F
+
+
+@jit
 def stored_energy(D: ChainData, x: F64) -> float:
     """Stored energy [J]: kinetic, elastic (integral of each spring law) and potential."""
     n = D.M.shape[0]
@@ -646,8 +666,7 @@ def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[f
     for f in range(nf):
         w = rel_speed(D, f, x)
         if fm[f] == SLIP_POS or fm[f] == SLIP_NEG:
-            s = 1.0 if fm[f] == SLIP_POS else -1.0
-            pd[n + m + f] = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s * w
+            pd[n + m + f] = kinetic_torque(D, f, x, u, fm, reg) * w
         elif fm[f] == STUCK:
             pd[n + m + f] = lam[f] * w
     return p_in, pd
@@ -763,8 +782,7 @@ def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) 
         if fm[f] == STUCK:
             out[c] += lam[f]
         elif fm[f] == SLIP_POS or fm[f] == SLIP_NEG:
-            s = 1.0 if fm[f] == SLIP_POS else -1.0
-            out[c] += capacity(D, f, u, reg) * mu_ratio(D, f, x, reg) * s
+            out[c] += kinetic_torque(D, f, x, u, fm, reg)
     return out
 
 
@@ -1192,7 +1210,30 @@ _E_TAB = np.array([E1, 0.0, E3, E4, E5, E6, E7])
 
 @jit
 def dp5_step(  # type: ignore[no-untyped-def]
-    D, S, ua, ub, t, t_ref, y, h, fm, reg, P, nx, energy, u, tau, pd, Ks, dy, yt, y1, err, Cd, cs, sv
+    D,
+    S,
+    ua,
+    ub,
+    t,
+    t_ref,
+    y,
+    h,
+    fm,
+    reg,
+    P,
+    nx,
+    energy,
+    u,
+    tau,
+    pd,
+    Ks,
+    dy,
+    yt,
+    y1,
+    err,
+    Cd,
+    cs,
+    sv,
 ):
     """One Dormand-Prince step from ``y`` with ``Ks[0] = f(y)``; writes ``y1``, ``err`` and
     ``Ks[6] = f(y1)`` (first same as last). One call site of ``full_rhs`` (inlined), stages in a
@@ -1207,7 +1248,27 @@ def dp5_step(  # type: ignore[no-untyped-def]
         if st == 6:
             for i in range(n):
                 y1[i] = yt[i]
-        full_rhs(D, S, ua, ub, t + _C_TAB[st] * h, t_ref, yt, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv)
+        full_rhs(
+            D,
+            S,
+            ua,
+            ub,
+            t + _C_TAB[st] * h,
+            t_ref,
+            yt,
+            fm,
+            reg,
+            P,
+            nx,
+            energy,
+            u,
+            tau,
+            pd,
+            dy,
+            Cd,
+            cs,
+            sv,
+        )
         for i in range(n):
             Ks[st, i] = dy[i]
     for i in range(n):
@@ -1244,7 +1305,12 @@ def dense_coeffs(y, y1, Ks, h, rc):  # type: ignore[no-untyped-def]
         rc[2, i] = r3
         rc[3, i] = r2 - h * Ks[6, i] - r3
         rc[4, i] = h * (
-            D1 * Ks[0, i] + D3 * Ks[2, i] + D4 * Ks[3, i] + D5 * Ks[4, i] + D6 * Ks[5, i] + D7 * Ks[6, i]
+            D1 * Ks[0, i]
+            + D3 * Ks[2, i]
+            + D4 * Ks[3, i]
+            + D5 * Ks[4, i]
+            + D6 * Ks[5, i]
+            + D7 * Ks[6, i]
         )
 
 
@@ -1448,8 +1514,30 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         if hit_stop:
             hh = t_stop - t
         dp5_step(
-            D, S, ua, ub, t, t_ref, y, hh, fm, reg, P, nx, energy, uw, tau, pd, Ks, dy, yt, y1, err,
-            Cd, cs, svw,
+            D,
+            S,
+            ua,
+            ub,
+            t,
+            t_ref,
+            y,
+            hh,
+            fm,
+            reg,
+            P,
+            nx,
+            energy,
+            uw,
+            tau,
+            pd,
+            Ks,
+            dy,
+            yt,
+            y1,
+            err,
+            Cd,
+            cs,
+            svw,
         )
         nfev += 6
         en = 0.0
@@ -1503,7 +1591,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 if not (hi - s >= margin):
                     s = hi - margin
                 dense_eval(rc, s, ys)
-                _guards_at(D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv)
+                _guards_at(
+                    D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv
+                )
                 jj = _fired(g0, gtry)
                 if jj >= 0:
                     if jj != j:
@@ -1546,7 +1636,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
-            full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+            full_rhs_call(
+                D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+            )
             Ks[0, :] = dy
             nfev += 1
             h_next = hh
@@ -1564,7 +1656,12 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             reg_old[:] = reg
             P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
-            full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+            if n_ev >= max_events:
+                status = MAX_EVENTS
+                break
+            full_rhs_call(
+                D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+            )
             Ks[0, :] = dy
             nfev += 1
             _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)

@@ -305,6 +305,7 @@ class Model:
             f_table=i64(f_table),
             f_static=f64([fr[3].static_ratio for fr in frictions]),
             f_mu=i64(f_mu),
+            f_eps=np.zeros(nf),
             t_nb=i64([len(t[2]) for t in tabs]),
             t_b=t_b,
             t_s=t_s,

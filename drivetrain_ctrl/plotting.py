@@ -148,19 +148,20 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     fig.suptitle(title)
 
     # (1) speeds
+    # (label, colour, line style, width, z-order): the engine on top, visible when locked
     styles = {
-        "engine": ("engine", "C3", "-"),
-        "disc": ("clutch disc", "C1", "--"),
-        "primary": ("primary shaft", "C0", "-"),
-        "hub": ("wheels (at primary)", "C2", "-"),
-        "vehicle": ("vehicle (at primary)", "C4", ":"),
+        "engine": ("engine", "C3", "-", 1.2, 4),
+        "disc": ("clutch disc", "C1", "--", 1.3, 3),
+        "primary": ("primary shaft", "C0", "-", 2.2, 2),
+        "hub": ("wheels (at primary)", "C2", "-", 1.3, 3),
+        "vehicle": ("vehicle (at primary)", "C4", ":", 1.5, 3),
     }
     for i, b in enumerate(model.chain.bodies):
         if b.name not in styles:
             continue
-        label, col, ls = styles[b.name]
+        label, col, ls, lw, z = styles[b.name]
         w = res.x[:, i] * _to_primary_factor(model, i, ip) / RPM_TO_RAD_S
-        ax_w.plot(t, w, color=col, ls=ls, lw=1.3, label=label)
+        ax_w.plot(t, w, color=col, ls=ls, lw=lw, zorder=z, label=label)
     ax_w.set_ylabel("speed [rpm]\n(primary-shaft frame)")
     ax_w.legend(loc="best", fontsize=8, ncol=2)
     if "vehicle" in bodies:
@@ -244,15 +245,16 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     ax_m.set_xlabel("time [s]")
     from matplotlib.patches import Patch
 
-    ax_m.legend(
+    fig.legend(
         handles=[
             Patch(color=c, label=lab) for c, lab in zip(_MODE_COLORS, _MODE_LABELS, strict=True)
         ],
-        loc="upper center",
-        bbox_to_anchor=(0.5, -0.35 / max(strip_h, 1.0) - 0.25),
+        loc="outside lower center",
         ncol=4,
-        fontsize=7,
+        fontsize=8,
         frameon=False,
+        title="modes (tick: event of that element)",
+        title_fontsize=8,
     )
     for ax in (ax_w, ax_T, ax_u):
         ax.grid(True, alpha=0.3)
@@ -261,6 +263,16 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     _mark_lockup([ax_w, ax_T, ax_u, ax_m], t_lock)
     _save(fig, path)
     return fig
+
+
+def _power_label(model: Model, j: int) -> str:
+    """Readable name of dissipation term ``j`` of ``model.power_names()``."""
+    name = model.power_names()[j]
+    if name.endswith(".ground"):
+        return f"dissipated: {name.removesuffix('.ground')} viscous/drag to ground"
+    if name.endswith(".damper"):
+        return f"dissipated: {name.removesuffix('.damper')} damping"
+    return f"dissipated: {name} friction"
 
 
 def plot_energy(res: SimulationResult, path: str | Path | None = None) -> Figure:
@@ -285,10 +297,10 @@ def plot_energy(res: SimulationResult, path: str | Path | None = None) -> Figure
     ax.plot(t, dE, color="C0", lw=1.6, label="stored - stored(0)")
     final = D[-1]
     big = float(np.max(np.abs(final))) if final.size else 0.0
-    order = np.argsort(-np.abs(final))
-    for j in order:
-        if big > 0 and abs(final[j]) >= 1e-3 * big:
-            ax.plot(t, D[:, j], lw=1.1, ls="--", label=f"dissipated: {model.power_names()[j]}")
+    order = np.argsort(-np.abs(final), kind="stable")
+    shown = [int(j) for j in order if big > 0 and abs(final[j]) >= 1e-3 * big]
+    for n, j in enumerate(shown):
+        ax.plot(t, D[:, j], lw=1.1, ls="--", color=f"C{(n + 1) % 10}", label=_power_label(model, j))
     ax.set_ylabel("energy [J]")
     ax.legend(loc="best", fontsize=8, ncol=2)
     ax.grid(True, alpha=0.3)

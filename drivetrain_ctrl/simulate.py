@@ -48,7 +48,9 @@ class SimulationOptions:
     stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s];
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
-    zeno_window [s] stop the run (:class:`ZenoError`).
+    zeno_window [s] stop the run (:class:`ZenoError`). smoothing [rad/s or m/s]: replace every
+    Coulomb law ``k sgn(w)`` by ``k tanh(w / smoothing)`` (no stick: for comparison only; the
+    default ``None`` is the exact switching model).
     """
 
     rtol: float = 1e-8
@@ -61,6 +63,7 @@ class SimulationOptions:
     zeno_window: float = 1e-6
     max_events: int = 100_000
     max_steps: int = 10_000_000
+    smoothing: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "h_max", "h_init", "tol_w", "zeno_window"):
@@ -72,6 +75,17 @@ class SimulationOptions:
                 or v <= 0
             ):
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be a finite number > 0")
+        if not isinstance(self.energy, bool):
+            raise ValueError(f"SimulationOptions.energy = {self.energy!r}: must be True or False")
+        if self.smoothing is not None and (
+            isinstance(self.smoothing, bool)
+            or not isinstance(self.smoothing, (int, float))
+            or not math.isfinite(self.smoothing)
+            or self.smoothing <= 0
+        ):
+            raise ValueError(
+                f"SimulationOptions.smoothing = {self.smoothing!r}: must be None or > 0"
+            )
         for name in ("zeno_count", "max_events", "max_steps"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 2:
@@ -256,7 +270,10 @@ def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Sig
         if not isinstance(s, Signal):
             from .signals import constant
 
-            s = constant(float(s))
+            try:
+                s = constant(s)  # type: ignore[arg-type]
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"input {n!r} = {s!r}: {exc}") from None
         out.append(s)
     return out
 
@@ -296,9 +313,13 @@ def simulate(
     if controller is not None:
         driven = controller.output
         if driven not in model.input_names:
-            raise KeyError(f"controller output {driven!r} is not an input of the model {model.input_names}")
+            raise KeyError(
+                f"controller output {driven!r} is not an input of the model {model.input_names}"
+            )
         if driven in inputs:
-            raise KeyError(f"input {driven!r} is driven by the controller; do not give a signal for it")
+            raise KeyError(
+                f"input {driven!r} is driven by the controller; do not give a signal for it"
+            )
         inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
     if controller is not None:
@@ -310,9 +331,14 @@ def simulate(
     S = tuple(pack_signals(sigs))
     bps = sorted({b for s in sigs for b in s.breakpoints if t0 < b < t_end})
     bps_arr = np.array(bps, dtype=float)
+    D = model.data
+    if opts.smoothing is not None:
+        eps = np.full(len(model.frictions), float(opts.smoothing))
+        eps.setflags(write=False)  # same numba type as the model's arrays: no recompilation
+        D = D._replace(f_eps=eps)
     tic = time.perf_counter()
     out = K.simulate_kernel(
-        model.data,
+        D,
         S,
         bps_arr,
         x0,
@@ -334,7 +360,9 @@ def simulate(
         len(model.input_names),
     )
     wall = time.perf_counter() - tic
-    T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = out
+    T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = (
+        out
+    )
     nx = model.nx
     nxs = nx + y_cl0.shape[0]
     events = []

@@ -20,9 +20,9 @@ import pytest
 
 from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, two_body_clutch
+from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, Spring, two_body_clutch
 from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.simulate import SimulationResult, simulate
+from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate
 
 T_EV = 1e-9  # event-time tolerance [s]
 
@@ -82,9 +82,7 @@ def test_locked_four_body_chain_with_viscous_load_is_first_order_lag() -> None:
         Body(f"b{i}", J[i], torque_input="T" if i == 0 else None, viscous=b if i == 3 else 0.0)
         for i in range(4)
     )
-    cps = tuple(
-        Coupling(f"c{i}", friction=Friction(scale=1e5, name=f"c{i}")) for i in range(3)
-    )
+    cps = tuple(Coupling(f"c{i}", friction=Friction(scale=1e5, name=f"c{i}")) for i in range(3))
     m = Model(Chain(bodies, cps, inputs=("T",)))
     res = simulate(m, [w0] * 4, {"T": T}, t_end=3.0)
     assert res.events == ()
@@ -129,8 +127,6 @@ def test_kernel_project_preserves_momentum(ratio: float) -> None:
 def test_decide_projection_at_start_keeps_weighted_mean_speed() -> None:
     """A run started with a small slip (below tol_w) is projected to the weighted mean speed
     z = (J1 w1 + J2 w2) / (J1 + J2) and sticks."""
-    from drivetrain_ctrl.simulate import SimulationOptions
-
     j1, j2 = 0.2, 0.6
     m = Model(two_body_clutch(j1, j2, capacity=100.0))
     x0 = np.array([10.0, 9.9])
@@ -398,3 +394,47 @@ def test_torque_step_breaks_ground_friction_away_at_the_step() -> None:
     assert abs(ev.t - 1.0) <= 1e-12
     assert np.all(res.x[res.t < 1.0, 0] == 0.0)
     assert res.x[-1, 0] == pytest.approx((8.0 - 5.0) / 2.0 * 1.0, rel=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------
+# backlash: free flight across the gap, half a period of contact (an elastic collision)
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("opts", "tol"),
+    [(SimulationOptions(), 1e-9), (SimulationOptions(rtol=1e-12, atol=1e-13), 1e-12)],
+)
+def test_backlash_gap_and_contact_times(opts: SimulationOptions, tol: float) -> None:
+    """Two bodies joined by a spring k with half gap g; body 1 at v, body 2 at rest, twist 0.
+
+    Gap: no torque, the twist grows at v: contact+ at t1 = g/v. Contact: the relative motion is
+    harmonic with omega = sqrt(k/mu), mu = J1 J2/(J1 + J2): back to the gap after pi/omega at
+    relative speed -v (speeds of an elastic collision); across the gap 2g/v to contact-; again
+    pi/omega to the gap with the initial speeds restored."""
+    j1, j2, k, g, v = 0.5, 1.5, 2000.0, 0.1, 4.0
+    sp = Spring.linear(k, backlash=g, name="bl")
+    m = Model(Chain((Body("b1", j1), Body("b2", j2)), (Coupling("bl", spring=sp),)))
+    assert m.state_names == ("omega_b1", "omega_b2", "q_bl")
+    half = math.pi / math.sqrt(k * (j1 + j2) / (j1 * j2))
+    t1 = g / v
+    t2 = t1 + half
+    t3 = t2 + 2.0 * g / v
+    t4 = t3 + half
+    res = simulate(m, [v, 0.0, 0.0], {}, t_end=t4 + 0.01, options=opts)
+    expected = [
+        (t1, "gap", "contact+"),
+        (t2, "contact+", "gap"),
+        (t3, "gap", "contact-"),
+        (t4, "contact-", "gap"),
+    ]
+    got = events_of(res, "bl")
+    assert [(a, b) for _, a, b in got] == [(a, b) for _, a, b in expected]
+    np.testing.assert_allclose([e[0] for e in got], [e[0] for e in expected], rtol=0, atol=tol)
+    # elastic collision: w1 = (J1 - J2)/(J1 + J2) v, w2 = 2 J1/(J1 + J2) v
+    i = sample_at(res, got[1][0])
+    w_after = [(j1 - j2) / (j1 + j2) * v, 2.0 * j1 / (j1 + j2) * v]
+    np.testing.assert_allclose(res.x[i, :2], w_after, rtol=0, atol=1e3 * tol)
+    assert res.x[i, 2] == pytest.approx(g, abs=1e3 * tol)
+    np.testing.assert_allclose(res.x[-1], [v, 0.0, -g + v * 0.01], rtol=0, atol=1e4 * tol)
+    assert res.energy_residual_rel <= (1e-8 if tol > 1e-10 else 1e-11)

@@ -33,7 +33,9 @@ def drivetrain(name: str, kind: str = "full") -> Drivetrain:
 
 
 @functools.cache
-def run(name: str, kind: str = "full", options: SimulationOptions | None = None) -> SimulationResult:
+def run(
+    name: str, kind: str = "full", options: SimulationOptions | None = None
+) -> SimulationResult:
     sc = scenario(name)
     dt = drivetrain(name, kind)
     return simulate(
@@ -69,7 +71,10 @@ def test_engage_ramp_locks_up(kind: str) -> None:
     assert series[0] == "open" and series[-1] == "stuck"
     # engine and disc turn together after lock-up; before it the engine is faster
     after = res.t > t_lock
-    we, wd = res.state("omega_engine"), res.state("omega_disc" if kind == "full" else "omega_primary")
+    we, wd = (
+        res.state("omega_engine"),
+        res.state("omega_disc" if kind == "full" else "omega_primary"),
+    )
     np.testing.assert_allclose(we[after], wd[after], rtol=1e-12, atol=1e-9)
     slip = (res.t > 0.25) & (res.t < t_lock - 1e-3)
     assert np.all(we[slip] > wd[slip])

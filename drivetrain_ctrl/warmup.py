@@ -1,0 +1,49 @@
+"""Compile (or load from numba's cache) every kernel once: ``python -m drivetrain_ctrl.warmup``.
+
+The first call in a fresh environment compiles the hybrid integrator (about a minute or two);
+later processes load the cached machine code. ``./dev`` runs this before the tests so that
+parallel test workers do not all compile at once.
+"""
+
+from __future__ import annotations
+
+import time
+
+import control
+import numpy as np
+
+
+def warmup() -> float:
+    """Run tiny open- and closed-loop simulations; returns the wall time [s]."""
+    from .chain import Body, Chain
+    from .closedloop import Controller
+    from .model import Model
+    from .params import default_params
+    from .scenarios import load_scenario
+    from .signals import constant
+    from .simulate import SimulationOptions, simulate
+
+    tic = time.perf_counter()
+    sc = load_scenario("engage-ramp")
+    dt = sc.drivetrain(default_params(), kind="reduced")
+    x0 = sc.initial_state(dt)
+    simulate(dt.model, x0, sc.input_signals(), t_end=0.05)
+    simulate(dt.model, x0, sc.input_signals(), t_end=0.05, options=SimulationOptions(energy=False))
+    one = Model(Chain((Body("b", 1.0, torque_input="torque"),), (), inputs=("torque",)))
+    c = Controller(
+        lti=control.ss([], [], [], [[1.0]]),
+        measurement=((1.0, "ref"), (-1.0, "omega_b")),
+        reference=constant(1.0),
+        output="torque",
+    )
+    simulate(one, np.zeros(1), {}, t_end=0.01, controller=c)
+    dt.model.jacobian(
+        x0,
+        dt.model.inputs(throttle=0.5, pedal=0.07, brake=0.0),
+        dt.model.decide(x0, dt.model.inputs(throttle=0.5, pedal=0.07, brake=0.0))[0],
+    )
+    return time.perf_counter() - tic
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(f"kernels ready in {warmup():.1f} s")

@@ -1,0 +1,148 @@
+"""The ``drivetrain-ctrl`` command line (:func:`drivetrain_ctrl.cli.main`), run in-process."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from drivetrain_ctrl.cli import main
+from drivetrain_ctrl.metrics import METRIC_KEYS
+from drivetrain_ctrl.params import PARAMETER_SETS_DIR
+
+FILES = (
+    "trajectory.csv",
+    "events.csv",
+    "metrics.json",
+    "timing.json",
+    "overview.png",
+    "energy.png",
+)
+
+
+def simulate_reduced(scenario: str, out: Path, *extra: str) -> int:
+    return main(
+        ["simulate", "--scenario", scenario, "--model", "reduced", "--out", str(out), *extra]
+    )
+
+
+@pytest.mark.parametrize("scenario", ["engage-ramp", "tip-in"])
+def test_simulate_reduced_writes_deterministic_outputs(
+    scenario: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert simulate_reduced(scenario, a) == 0
+    out = capsys.readouterr().out
+    assert scenario in out and "reduced" in out
+    assert simulate_reduced(scenario, b) == 0
+    for name in FILES:
+        assert (a / name).is_file() and (a / name).stat().st_size > 0, name
+    assert (a / "metrics.json").read_bytes() == (b / "metrics.json").read_bytes()
+    m = json.loads((a / "metrics.json").read_text())
+    assert set(METRIC_KEYS) <= set(m)
+    assert m["scenario"] == scenario and m["model"] == "reduced"
+    assert m["parameter_set"] == "passenger-car"
+    assert m["status"] == "ok"
+    assert m["energy_residual_rel"] < 1e-8
+    timing = json.loads((a / "timing.json").read_text())
+    assert timing["wall_time_s"] > 0 and timing["nfev"] > 0 and timing["steps"] > 0
+    traj = pd.read_csv(a / "trajectory.csv")
+    assert "t [s]" in traj.columns and "omega_engine [rad/s]" in traj.columns
+    assert len(traj) == m["n_samples"]
+    events = pd.read_csv(a / "events.csv")
+    assert list(events.columns) == ["t [s]", "element", "from_mode", "to_mode"]
+    assert len(events) == m["n_events"]
+    if scenario == "engage-ramp":
+        assert m["lockup_time_s"] is not None and 0.2 < m["lockup_time_s"] < 3.0
+        assert m["clutch_energy_J"] > 0
+    else:  # clutch locked throughout; the backlash is crossed once (contact- -> contact+)
+        assert m["lockup_time_s"] is None
+        assert m["clutch_energy_J"] == 0.0
+        assert m["n_backlash_crossings"] == 1
+
+
+def test_simulate_options(tmp_path: Path) -> None:
+    assert simulate_reduced("tip-in", tmp_path, "--t-end", "0.8", "--rtol", "1e-6") == 0
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert m["t_end_s"] == 0.8 and m["rtol"] == 1e-6
+
+
+def test_misspelt_scenario_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert simulate_reduced("engage-rmap", tmp_path / "x") == 2
+    err = capsys.readouterr().err
+    assert "engage-rmap" in err and "scenario" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_scenario_file_with_misspelt_key_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text(
+        'name = "bad"\nt_ned = 1.0\n[initial]\nengine_speed_rpm = 1000.0\nvehicle_speed_kmh = 0.0\n'
+        "throttle = 0.5\n"
+    )
+    assert simulate_reduced(str(f), tmp_path / "x") == 2
+    err = capsys.readouterr().err
+    assert "t_ned" in err and "t_end" in err
+
+
+def test_params_file_with_misspelt_key_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = (PARAMETER_SETS_DIR / "passenger-car.toml").read_text()
+    assert "\nJ1 = " in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("\nJ1 = ", "\nJ_1 = ", 1))
+    rc = main(
+        ["simulate", "--scenario", "tip-in", "--model", "reduced", "--params", str(bad)]
+        + ["--out", str(tmp_path / "x")]
+    )
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "engine.J_1" in err and "unknown parameter" in err and "J1" in err
+    assert "Traceback" not in err
+
+
+def test_unknown_params_set_and_missing_file_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["params", "show", "passenger-kar"]) == 2
+    assert "passenger-kar" in capsys.readouterr().err
+    assert main(["params", "show", str(tmp_path / "none.toml")]) == 2
+    assert "none.toml" in capsys.readouterr().err
+
+
+def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--scenario", "tip-in", "--model", "tiny", "--out", "x"]) == 2
+    assert "tiny" in capsys.readouterr().err
+    assert main([]) == 2
+    assert main(["--help"]) == 0
+
+
+def test_params_and_scenarios_listing(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["params", "list"]) == 0
+    assert "passenger-car" in capsys.readouterr().out
+    assert main(["params", "show"]) == 0
+    out = capsys.readouterr().out
+    assert "engine.J1" in out and "kg m^2" in out and "frame: engine" in out
+    assert "clutch.pedal_map" in out
+    assert main(["scenarios", "list"]) == 0
+    out = capsys.readouterr().out
+    assert "engage-ramp" in out and "tip-in" in out
+
+
+def test_demo_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--out", str(tmp_path), "--quick"]) == 0
+    summary = (tmp_path / "summary.md").read_text()
+    for scenario in ("engage-ramp", "tip-in"):
+        d = tmp_path / f"{scenario}-reduced"
+        for name in FILES:
+            assert (d / name).is_file(), d / name
+        assert f"{scenario}-reduced/overview.png" in summary
+    assert not (tmp_path / "engage-ramp-full").exists()
+    assert "lock-up time [s]" in summary
+    assert str(tmp_path / "summary.md") in capsys.readouterr().out

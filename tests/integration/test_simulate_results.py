@@ -1,0 +1,276 @@
+"""The results API of :func:`simulate` (DataFrames with units, modes, lock-up time, coupling
+torques) and the errors of bad arguments."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from drivetrain_ctrl import signals as sg
+from drivetrain_ctrl.chain import two_body_clutch
+from drivetrain_ctrl.drivetrain import Drivetrain
+from drivetrain_ctrl.model import Model
+from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.scenarios import builtin_scenarios
+from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate
+
+
+@functools.cache
+def engage() -> tuple[Drivetrain, SimulationResult]:
+    sc = builtin_scenarios()["engage-ramp"]
+    dt = sc.drivetrain(default_params())
+    return dt, simulate(dt.model, sc.initial_state(dt), sc.input_signals(), t_end=sc.t_end)
+
+
+@functools.cache
+def tip_in() -> SimulationResult:
+    sc = builtin_scenarios()["tip-in"]
+    dt = sc.drivetrain(default_params())
+    return simulate(dt.model, sc.initial_state(dt), sc.input_signals(), t_end=1.0)
+
+
+def small() -> tuple[Model, dict[str, object], np.ndarray]:
+    m = Model(two_body_clutch(0.2, 1.0, capacity=50.0))
+    return m, {"torque1": 20.0}, np.array([100.0, 0.0])
+
+
+# ------------------------------------------------------------------------------------------------
+# DataFrames
+# ------------------------------------------------------------------------------------------------
+
+
+def test_to_dataframe_columns_carry_units_and_values() -> None:
+    dt, res = engage()
+    df = res.to_dataframe()
+    cols = set(df.columns)
+    for c in (
+        "t [s]",
+        "omega_engine [rad/s]",
+        "omega_disc [rad/s]",
+        "v_vehicle [m/s]",
+        "q_backlash [rad]",
+        "pos_vehicle [m]",
+        "lag_engine [-]",
+        "T_clutch [N m]",
+        "T_backlash [N m]",
+        "work_in [J]",
+        "stored_energy [J]",
+        "dissipated_clutch [J]",
+        "mode_clutch",
+        "mode_backlash",
+    ):
+        assert c in cols, c
+    # every state has a column named "<state> [<unit>]"
+    for nm, un in zip(dt.model.state_names, dt.model.state_units, strict=True):
+        np.testing.assert_array_equal(df[f"{nm} [{un}]"].to_numpy(), res.state(nm))
+    assert len(df) == res.t.shape[0]
+    np.testing.assert_array_equal(df["t [s]"].to_numpy(), res.t)
+    assert list(df["mode_clutch"]) == res.mode_series("clutch")
+    np.testing.assert_array_equal(df["T_clutch [N m]"].to_numpy(), res.coupling_torques()[:, 0])
+    np.testing.assert_allclose(df["stored_energy [J]"].to_numpy(), res.stored_energy())
+    # the inputs are there too (throttle [-], pedal [m], brake [N m])
+    np.testing.assert_array_equal(df["input_pedal"].to_numpy(), res.u[:, 1])
+
+
+def test_to_dataframe_without_energy_and_residual_needs_energy() -> None:
+    m, inputs, x0 = small()
+    res = simulate(m, x0, inputs, t_end=1.0, options=SimulationOptions(energy=False))
+    assert res.work_in is None and res.dissipated is None
+    df = res.to_dataframe()
+    assert "work_in [J]" not in df.columns
+    assert "omega_b1 [rad/s]" in df.columns
+    with pytest.raises(ValueError, match="energy"):
+        _ = res.energy_residual_rel
+
+
+def test_events_dataframe_matches_events() -> None:
+    _, res = engage()
+    ev = res.events_dataframe()
+    assert list(ev.columns) == ["t [s]", "element", "from_mode", "to_mode"]
+    assert len(ev) == len(res.events) > 0
+    for row, e in zip(ev.itertuples(index=False), res.events, strict=True):
+        assert (row[0], row[1], row[2], row[3]) == (e.t, e.element, e.from_mode, e.to_mode)
+    assert np.all(np.diff(ev["t [s]"].to_numpy()) >= 0.0)
+    # every friction event names real modes of its element
+    modes = {fi.name: set(fi.mode_names) for fi in res.model.frictions}
+    for e in res.events:
+        if e.element in modes:
+            assert {e.from_mode, e.to_mode} <= modes[e.element]
+            assert e.from_mode != e.to_mode
+
+
+def test_events_are_consistent_with_mode_series() -> None:
+    """Each friction event changes the recorded mode at its sample, from from_mode to to_mode."""
+    _, res = engage()
+    for e in res.events:
+        if e.element not in {fi.name for fi in res.model.frictions}:
+            continue
+        series = res.mode_series(e.element)
+        i = int(np.flatnonzero(res.t == e.t)[-1])
+        assert series[i] == e.to_mode
+        j = int(np.flatnonzero(res.t < e.t)[-1])
+        assert series[j] == e.from_mode
+
+
+def test_mode_series_elements() -> None:
+    _, res = engage()
+    assert res.mode_series("clutch")[0] == "open"
+    assert set(res.mode_series("tyre")) <= {"grip", "slip+", "slip-", "lifted"}
+    assert set(res.mode_series("backlash")) <= {"contact-", "gap", "contact+"}
+    assert len(res.mode_series("vehicle")) == res.t.shape[0]
+    with pytest.raises(KeyError, match="nope"):
+        res.mode_series("nope")
+    with pytest.raises(KeyError):
+        res.mode_series("clutch.capacity_table")  # a table without mode names
+
+
+def test_lockup_time() -> None:
+    _, res = engage()
+    t_lock = res.lockup_time()
+    assert t_lock is not None and 1.0 < t_lock < 3.0
+    last = [e for e in res.events if e.element == "clutch" and e.to_mode == "stuck"][-1]
+    assert t_lock == last.t
+    assert res.lockup_time(after=t_lock + 0.1) is None
+    assert tip_in().lockup_time() is None  # stuck from the start
+    with pytest.raises(KeyError, match="nope"):
+        res.lockup_time("nope")
+    # a two-body clutch that locks at 0.5 s
+    m, inputs, x0 = small()
+    r = simulate(m, x0, inputs, t_end=1.0)
+    assert r.lockup_time() == pytest.approx(0.5, abs=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------
+# coupling torques
+# ------------------------------------------------------------------------------------------------
+
+
+def test_clutch_torque_is_the_capacity_while_slipping() -> None:
+    dt, res = engage()
+    pm = dt.params.clutch.pedal_map
+    cap = np.interp(res.u[:, 1], pm.x, pm.y)  # flat mu table: capacity k12(x_c)
+    Tc = res.coupling_torques()[:, 0]
+    series = np.array(res.mode_series("clutch"))
+    slip = series == "slip+"
+    assert slip.sum() > 100
+    np.testing.assert_allclose(Tc[slip], cap[slip], rtol=1e-12, atol=1e-12)
+    np.testing.assert_array_equal(Tc[series == "open"], 0.0)
+    # stuck: the constraint torque, within the (static = kinetic) capacity
+    stuck = series == "stuck"
+    assert stuck.sum() > 10
+    assert np.all(np.abs(Tc[stuck]) <= cap[stuck] * (1.0 + 1e-9))
+    # and it equals the model's stuck torque at those samples
+    m = dt.model
+    for i in np.flatnonzero(stuck)[::50]:
+        mode, _ = m.decide(res.x[i], res.u[i])
+        assert m.mode_names(mode)["clutch"] == "stuck"
+        assert Tc[i] == pytest.approx(m.stuck_torques(res.x[i], res.u[i], mode)["clutch"])
+
+
+def test_spring_coupling_torque_is_the_spring_law() -> None:
+    """T_backlash = h34 * deadzone(q, g) + b34 * (w3 - tau_r w4) at every sample."""
+    res = tip_in()
+    p = default_params()
+    g = p.gearbox.g34_primary(1)
+    q = res.state("q_backlash")
+    dz = np.where(q > g, q - g, np.where(q < -g, q + g, 0.0))
+    w = res.state("omega_primary") - p.gearbox.tau_r(1) * res.state("omega_secondary")
+    Tb = res.coupling_torques()[:, 2]
+    np.testing.assert_allclose(Tb, p.gearbox.h34 * dz + p.gearbox.b34 * w, rtol=1e-9, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------
+# bad arguments
+# ------------------------------------------------------------------------------------------------
+
+
+def test_bad_x0_shape() -> None:
+    m, inputs, _ = small()
+    with pytest.raises(ValueError, match=r"x0 must have shape \(2,\).*omega_b1"):
+        simulate(m, np.zeros(3), inputs, t_end=1.0)
+    with pytest.raises(ValueError, match="x0 must have shape"):
+        simulate(m, np.zeros((1, 2)), inputs, t_end=1.0)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_x0_names_the_state(bad: float) -> None:
+    dt, _ = engage()
+    x0 = np.zeros(dt.model.nx)
+    x0[dt.model.state_index("q_backlash")] = bad
+    with pytest.raises(ValueError, match="q_backlash") as exc:
+        simulate(dt.model, x0, {"throttle": 0.0, "pedal": 0.1, "brake": 0.0}, t_end=0.1)
+    assert "omega_engine" not in str(exc.value)
+
+
+def test_missing_and_unknown_inputs_are_named() -> None:
+    dt, _ = engage()
+    x0 = np.zeros(dt.model.nx)
+    with pytest.raises(KeyError, match="brake"):
+        simulate(dt.model, x0, {"throttle": 0.0, "pedal": 0.1}, t_end=0.1)
+    with pytest.raises(KeyError, match="clutch_pedal"):
+        simulate(
+            dt.model,
+            x0,
+            {"throttle": 0.0, "pedal": 0.1, "brake": 0.0, "clutch_pedal": 0.1},
+            t_end=0.1,
+        )
+
+
+@pytest.mark.parametrize(
+    ("t0", "t_end"), [(0.0, 0.0), (1.0, 0.5), (0.0, math.nan), (0.0, math.inf)]
+)
+def test_bad_time_span(t0: float, t_end: float) -> None:
+    m, inputs, x0 = small()
+    with pytest.raises(ValueError, match="t_end"):
+        simulate(m, x0, inputs, t0=t0, t_end=t_end)
+
+
+def test_nonzero_t0() -> None:
+    """Starting at t0 = 2 with a torque step at 2.5: lock-up 0.5 s after the start as from 0."""
+    m, _, x0 = small()
+    res = simulate(m, x0, {"torque1": sg.step(2.5, 5.0, initial=20.0)}, t0=2.0, t_end=3.0)
+    assert res.t[0] == 2.0 and res.t[-1] == 3.0
+    assert res.lockup_time() == pytest.approx(2.5, abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("rtol", 0.0),
+        ("rtol", "1e-6"),
+        ("atol", -1.0),
+        ("h_max", math.nan),
+        ("h_init", math.inf),
+        ("tol_w", True),
+        ("zeno_window", 0.0),
+        ("zeno_count", 1),
+        ("zeno_count", 3.0),
+        ("max_events", 2.5),
+        ("max_steps", True),
+    ],
+)
+def test_bad_options_name_the_field(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=rf"SimulationOptions\.{field}"):
+        SimulationOptions(**{field: value})  # type: ignore[arg-type]
+
+
+def test_options_are_keyword_only_and_frozen() -> None:
+    with pytest.raises(TypeError):
+        SimulationOptions(1e-6)  # type: ignore[misc]
+    opts = SimulationOptions()
+    with pytest.raises(AttributeError):
+        opts.rtol = 1e-3  # type: ignore[misc]
+
+
+def test_non_finite_constant_input_names_the_input() -> None:
+    m, _, x0 = small()
+    with pytest.raises(ValueError, match="torque1"):
+        simulate(m, x0, {"torque1": math.nan}, t_end=1.0)
+
+
+def test_energy_option_must_be_bool() -> None:
+    with pytest.raises((TypeError, ValueError), match="energy"):
+        SimulationOptions(energy="yes")  # type: ignore[arg-type]
