@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
+from scipy.integrate import DOP853, RK45, OdeSolution, solve_ivp
+from scipy.optimize import brentq
 
 from drivetrain_ctrl.params import DrivetrainParams
 from drivetrain_ctrl.reference import (
@@ -68,6 +69,7 @@ N_BODIES = 7
 #: tables with regions: names as in the compiled model (so events can be matched by name)
 TABLE_NAMES = ("damper.spring", "backlash", "clutch.capacity_table")
 BACKLASH_REGIONS = ("contact-", "gap", "contact+")
+METHODS = {"RK45": RK45, "DOP853": DOP853}
 
 
 class ZenoError(RuntimeError):
@@ -663,6 +665,7 @@ def _regions(
     sys: FlatGeometry, x: F64, u: Sequence[float], ub: Sequence[float], prev: Sequence[int] | None
 ) -> tuple[int, ...]:
     """Region of each table; an argument on a knee (within 1e-10) goes to the side it moves to."""
+    del prev
     args = sys.table_args(x, u)
     rates = sys.table_rates(x, ub)
     out = []
@@ -675,9 +678,7 @@ def _regions(
                     r = i + 1
                 elif da < 0.0:
                     r = i
-                elif prev is not None and prev[k] in (i, i + 1):
-                    r = prev[k]
-                else:
+                else:  # not moving: the bound belongs to the region below (as in the kernel)
                     r = i
                 break
         out.append(r)
@@ -822,6 +823,12 @@ class Guards:
     def values(self, t: float, y: F64) -> F64:
         if self._t == t and self._y is not None and np.array_equal(self._y, y):
             return self._g
+        g = self.compute(t, y)
+        self._t, self._y, self._g = t, y.copy(), g
+        return g
+
+    def compute(self, t: float, y: F64) -> F64:
+        """Guard values at ``(t, y)`` (no cache)."""
         sys = self.sys
         w = sys.G @ y[:N_BODIES]
         lam = self.lam_fn(t, y) if self.lam_fn is not None else None
@@ -845,7 +852,6 @@ class Guards:
             # the segment start, so that solve_ivp brackets its first real crossing (its root
             # finder would return the segment start itself if the value there were exactly 0).
             np.maximum(g, 1e-300, out=g)
-        self._t, self._y, self._g = t, y.copy(), g
         return g
 
     def _make(self, i: int) -> Callable[[float, F64], float]:
@@ -855,6 +861,94 @@ class Guards:
         ev.terminal = True  # type: ignore[attr-defined]
         ev.direction = -1.0  # type: ignore[attr-defined]
         return ev
+
+
+# ------------------------------------------------------------------------------------------------
+# one segment with the guards also sampled inside each step
+# ------------------------------------------------------------------------------------------------
+
+_EPS = float(np.finfo(float).eps)
+
+
+@dataclass
+class _Segment:
+    t: F64  # accepted step ends, from the segment start to its end (event or stop)
+    y: F64  # (13, n)
+    sol: object | None
+    status: int  # 0 reached the stop, 1 a guard fired
+    fired: list[int]
+    nfev: int
+
+
+def integrate_segment_dense_guards(
+    method: str,
+    rhs: Callable[[float, F64], F64],
+    t0: float,
+    t1: float,
+    x0: F64,
+    guards: Guards,
+    *,
+    rtol: float,
+    atol: float,
+    first_step: float | None = None,
+    guard_spacing: float = 1e-5,
+    max_samples: int = 200,
+) -> _Segment:
+    """scipy's ``method`` stepper (the one ``solve_ivp`` uses), with every guard checked at the
+    step end *and* on the step's dense output every ``guard_spacing`` seconds (at most
+    ``max_samples`` points a step): a guard that goes negative and comes back within one step is
+    not missed, as it is with ``solve_ivp``'s events (checked at step ends only). The first
+    crossing is located by ``brentq`` on the dense output (xtol 4 eps, as ``solve_ivp``)."""
+    cls = METHODS[method]
+    solver = cls(rhs, t0, x0, t1, rtol=rtol, atol=atol, first_step=first_step)
+    ts = [t0]
+    ys = [np.array(x0, dtype=float)]
+    interps = []
+    g_prev = guards.values(t0, ys[0]).copy()
+    status, fired = 0, []
+    while solver.status == "running":
+        solver.step()
+        if solver.status == "failed":
+            raise RuntimeError(f"{method} failed at t = {solver.t}")
+        ta0, tb0 = solver.t_old, solver.t
+        dense = solver.dense_output()
+        interps.append(dense)
+        if guards.kinds:
+            n = min(max_samples, int(math.ceil((tb0 - ta0) / guard_spacing)) - 1)
+            inner = ta0 + (tb0 - ta0) * np.arange(1, n + 1) / (n + 1) if n > 0 else np.empty(0)
+            pts_t = [*inner.tolist(), tb0]
+            pts_y = [*(dense(inner).T if n > 0 else []), solver.y]
+            ta, ga = ta0, g_prev
+            hit = None
+            for tb, yb in zip(pts_t, pts_y, strict=True):
+                gb = guards.compute(tb, yb)
+                idx = np.nonzero((ga >= 0.0) & (gb < 0.0))[0]
+                if idx.size:
+                    roots = []
+                    for i in idx:
+                        r = brentq(
+                            lambda tt, i=i, d=dense: float(guards.compute(tt, d(tt))[i]),
+                            ta,
+                            tb,
+                            xtol=4 * _EPS,
+                            rtol=4 * _EPS,
+                        )
+                        roots.append((r, int(i)))
+                    t_hit = min(r for r, _ in roots)
+                    hit = (t_hit, [i for r, i in roots if r == t_hit])
+                    break
+                ta, ga = tb, gb
+            if hit is not None:
+                t_hit, fired = hit
+                ts.append(t_hit)
+                ys.append(dense(t_hit))
+                status = 1
+                break
+            g_prev = ga
+        ts.append(tb0)
+        ys.append(solver.y.copy())
+    sol = OdeSolution(np.array(ts), interps) if interps else None
+    return _Segment(np.array(ts), np.array(ys).T, sol, status, fired, solver.nfev)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -922,8 +1016,14 @@ def simulate_events(
     dense: bool = True,
     tol_w: float = 1e-9,
     max_events: int = 200_000,
+    guard_spacing: float | None = None,
 ) -> Run:
-    """Event-driven scipy simulation of the flat model (see the module docstring)."""
+    """Event-driven scipy simulation of the flat model (see the module docstring).
+
+    ``guard_spacing`` None: ``solve_ivp`` with the guards as terminal events (checked at step
+    ends); a number [s]: :func:`integrate_segment_dense_guards` (guards also sampled inside each
+    step at that spacing), used for the reference.
+    """
     tic = time.perf_counter()
     pieces = InputPieces(inputs)
     stops = pieces.stops(t0, t_end, sys.pedal_knots)
@@ -946,30 +1046,48 @@ def simulate_events(
         t_stop = stops[i_stop] if i_stop < len(stops) else t_end
         rhs = sys.make_rhs(modes, reg, piece)
         guards = Guards(sys, modes, reg, piece, t)
-        sol = solve_ivp(
-            rhs,
-            (t, t_stop),
-            x,
-            method=method,
-            rtol=rtol,
-            atol=atol,
-            events=guards.events or None,
-            dense_output=dense,
-            first_step=None if first_step is None else min(first_step, t_stop - t),
-        )
-        if sol.status < 0:
-            raise RuntimeError(f"solve_ivp failed at t = {t}: {sol.message}")
-        nfev += sol.nfev
-        nsteps += len(sol.t) - 1
-        Ts.append(sol.t[:-1])
-        Xs.append(sol.y[:, :-1].T)
+        fs = None if first_step is None else min(first_step, t_stop - t)
+        if guard_spacing is None:
+            sol = solve_ivp(
+                rhs,
+                (t, t_stop),
+                x,
+                method=method,
+                rtol=rtol,
+                atol=atol,
+                events=guards.events or None,
+                dense_output=dense,
+                first_step=fs,
+            )
+            if sol.status < 0:
+                raise RuntimeError(f"solve_ivp failed at t = {t}: {sol.message}")
+            seg_t, seg_y, seg_sol, status = sol.t, sol.y, sol.sol, sol.status
+            fired = [i for i, te in enumerate(sol.t_events or []) if te.size]
+            nfev += sol.nfev
+        else:
+            seg = integrate_segment_dense_guards(
+                method,
+                rhs,
+                t,
+                t_stop,
+                x,
+                guards,
+                rtol=rtol,
+                atol=atol,
+                first_step=fs,
+                guard_spacing=guard_spacing,
+            )
+            seg_t, seg_y, seg_sol, status, fired = seg.t, seg.y, seg.sol, seg.status, seg.fired
+            nfev += seg.nfev
+        nsteps += len(seg_t) - 1
+        Ts.append(seg_t[:-1])
+        Xs.append(seg_y[:, :-1].T)
         if dense:
-            segs.append((t, float(sol.t[-1]), sol.sol))
-        t_new = float(sol.t[-1])
-        x = sol.y[:, -1].copy()
+            segs.append((t, float(seg_t[-1]), seg_sol))
+        t_new = float(seg_t[-1])
+        x = seg_y[:, -1].copy()
         forced: dict[int, int] = {}
-        if sol.status == 1:
-            fired = [i for i, te in enumerate(sol.t_events) if te.size]
+        if status == 1:
             for i in fired:
                 kind, f = guards.kinds[i]
                 if kind == "stuck":
@@ -988,7 +1106,7 @@ def simulate_events(
         t = t_new
         m_new, r_new, ok = decide(sys, t, x, piece, modes, reg, forced, tol_w=tol_w)
         n_bad += 0 if ok else 1
-        if tiny and sol.status == 1 and m_new == modes and r_new == reg:
+        if tiny and status == 1 and m_new == modes and r_new == reg:
             # a spurious root right at the segment start: the first step jumped over a short
             # episode (the dense output then misplaces the crossing); restart with small steps
             first_step = 1e-7 if first_step is None else first_step * 1e-2

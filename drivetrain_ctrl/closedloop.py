@@ -117,10 +117,10 @@ class Controller:
     def is_discrete(self) -> bool:
         return bool(self.lti.dt) and self.lti.dt is not True
 
-    def compile(
-        self, model: Model
-    ) -> tuple[K.CtrlData, NDArray[np.float64], NDArray[np.float64], list[Signal]]:
-        """Arrays for the compiled loop: (CtrlData, discrete state, initial states, reference signals)."""
+    def compile(self, model: Model) -> tuple[K.CtrlData, NDArray[np.float64], list[Signal]]:
+        """Arrays for the compiled loop: (CtrlData, discrete state, reference signals).
+
+        The continuous controller states start from :meth:`initial_states`."""
         nu = len(model.input_names)
         m_kind, m_idx, m_coef = [], [], []
         for c, src in self.measurement:
@@ -204,9 +204,8 @@ class Controller:
         )
         if disc:
             cs[K.CS_XD : K.CS_XD + nstate] = x_lti
-        y0: list[float] = [] if disc else list(x_lti)
         refs = [self.reference if self.reference is not None else constant(0.0)]
-        return Cd, cs, np.zeros(0), refs  # initial states completed by initial_states()
+        return Cd, cs, refs
 
     def initial_states(
         self, model: Model, x0: NDArray[np.float64], u0: float

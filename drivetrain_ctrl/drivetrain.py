@@ -135,12 +135,12 @@ def _vehicle(p: DrivetrainParams, slope: float) -> Body:
         quadratic=0.5 * v.rho_a * v.C_x * v.S,
         load=-v.M_v * GRAVITY * math.sin(slope),
         ground_friction=Friction(
-            scale=v.k_v(slope),
+            scale=float(v.k_v(slope)),
             static_ratio=v.rolling_static_ratio,
             mode_names=("standstill", "moving+", "moving-", "free"),
             name="vehicle",
         )
-        if v.k_v(slope) > 0
+        if float(v.k_v(slope)) > 0
         else None,
     )
 
@@ -202,7 +202,7 @@ def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Cha
             "tyre",
             ratio=1.0 / dl.R_p,
             friction=Friction(
-                scale=p.vehicle.k_w(slope) * dl.R_p,
+                scale=float(p.vehicle.k_w(slope)) * dl.R_p,
                 static_ratio=p.vehicle.tyre_static_ratio,
                 mode_names=("grip", "slip+", "slip-", "lifted"),
                 name="tyre",
@@ -282,6 +282,11 @@ class Drivetrain:
     """
 
     __slots__ = ("model", "params", "gear", "slope", "kind")
+    model: Model
+    params: DrivetrainParams
+    gear: int
+    slope: float
+    kind: str
 
     def __init__(
         self, params: DrivetrainParams, *, kind: str = "full", gear: int = 1, slope: float = 0.0

@@ -201,7 +201,8 @@ class Signal:
         if "times" not in d or "values" not in d:
             raise ValueError(f"{name}: needs both 'times' and 'values'")
         sines = []
-        for i, s in enumerate(d.get("sines", [])):  # type: ignore[attr-defined]
+        raw_sines: list[dict[str, object]] = list(d.get("sines", []))  # type: ignore[call-overload]
+        for i, s in enumerate(raw_sines):
             unknown = set(s) - {"amplitude", "omega", "phase", "t_start"}
             if unknown:
                 raise ValueError(f"{name}.sines[{i}]: unknown key(s) {sorted(unknown)}")
@@ -209,7 +210,7 @@ class Signal:
                 if key not in s:
                     raise ValueError(f"{name}.sines[{i}].{key}: missing")
             try:
-                sines.append(Sine(**{k: _check_finite(k, v) for k, v in s.items()}))
+                sines.append(Sine(**{k: _check_finite(k, v) for k, v in s.items()}))  # type: ignore[arg-type]
             except (TypeError, ValueError) as exc:
                 raise ValueError(f"{name}.sines[{i}]: {exc}") from exc
         vals: dict[str, tuple[float, ...]] = {}

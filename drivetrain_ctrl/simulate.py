@@ -323,7 +323,7 @@ def simulate(
         inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
     if controller is not None:
-        Cd, cs, _, refs = controller.compile(model)
+        Cd, cs, refs = controller.compile(model)
         y_cl0 = controller.initial_states(model, x0, float(controller_initial))
         sigs = sigs + list(refs)
     else:
