@@ -32,7 +32,7 @@ Inputs (SI): ``throttle`` theta [-] in [0, 1], ``pedal`` x_c [m] (larger = clutc
 
 Reduced model (:func:`reduced_chain`, Section III): bodies ``engine`` (J1), ``primary`` (J25, the
 disc, primary shaft, secondary shaft and wheels rigidly joined, primary frame) and ``vehicle``
-(M_v); couplings ``clutch`` (k13 = k12) and ``shaft`` (ratio tau_t / R_p, stiffness h_t with
+(M_v); couplings ``clutch`` (k13 = k12) and ``backlash`` (the equivalent shaft: ratio tau_t / R_p, stiffness h_t with
 backlash g_t and damping b_t, primary frame). Damping of the equivalent shaft: for Kelvin-Voigt
 elements in series the compliance adds, ``1/(h_t + j w b_t) = sum 1/(h_i + j w b_i)``; to first
 order in frequency this gives
