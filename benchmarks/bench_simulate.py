@@ -18,7 +18,8 @@ For the full-model scenarios ``engage-ramp`` and ``tip-in`` (default parameters)
 Errors against the reference: event times (events matched by element and new mode, nearest in
 time, one to one, within 20 ms) and speeds (max abs difference of the 7 speed states at each
 method's own output samples against the reference's dense output, samples within 1 ms after a
-reference event excluded). Times are medians of repeated runs (wall clock of the whole call).
+reference event excluded). Times are medians of repeated runs (wall clock of the whole call; A, B
+and ours at default options timed in interleaved rounds, as the machine load drifts).
 Writes ``results/simulate.json`` and ``results/simulate.png`` and prints a table.
 """
 
@@ -64,6 +65,8 @@ MATCH_WINDOW = 0.02  # [s]
 REF_TOL = 1e-12
 CONV_TOL = 1e-11
 LITERAL_TOL = 1e-10
+OURS_PER_ROUND = 5  # ours, default options: runs per timing round (1 round quick, 3 full)
+OURS_SWEEP_REPEATS = 5  # ours, tolerance sweep: timed runs per tolerance after a warm-up
 GUARD_SPACING = 1e-5  # [s] reference: guards also sampled on the dense output at this spacing
 
 GOAL_SPEEDUP_EVENTS = 50.0
@@ -264,18 +267,43 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
             flush=True,
         )
 
-    # 2. baseline A ----------------------------------------------------------------------------
-    rep = 1 if quick else 3
-    times, ra = timed(
-        lambda: B.simulate_events(
+    # 2.-4. A, B and ours at default options: timed in interleaved rounds (the machine is shared;
+    # load drifts), each round: A once, B once, ours (after a warm-up) OURS_PER_ROUND times
+    model = dtr.model
+    default = SimulationOptions()
+
+    def run_a() -> B.Run:
+        return B.simulate_events(
             fast, x0, inputs, sc.t_end, method="RK45", rtol=1e-6, atol=1e-9, dense=False
-        ),
-        rep,
-    )
+        )
+
+    def run_b() -> B.Run:
+        return B.simulate_tanh(fast, x0, inputs, sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9)
+
+    def run_ours_once(opts: SimulationOptions) -> tuple[float, Any]:
+        tic = time.perf_counter()
+        res = simulate(model, x0, inputs, t_end=sc.t_end, options=opts)
+        return time.perf_counter() - tic, res
+
+    run_ours_once(default)  # warm-up
+    rounds = 1 if quick else 3
+    t_a: list[float] = []
+    t_b: list[float] = []
+    t_o: list[float] = []
+    k_o: list[float] = []
+    for _ in range(rounds):
+        dt_a, ra = timed(run_a, 1)
+        dt_b, rb = timed(run_b, 1)
+        t_a += dt_a
+        t_b += dt_b
+        for _ in range(OURS_PER_ROUND):
+            dt_o, res = run_ours_once(default)
+            t_o.append(dt_o)
+            k_o.append(res.stats["wall_time_s"])
     record(
         "events_rk45",
         "A: scipy RK45 event-driven 1e-6",
-        times,
+        t_a,
         ra.t,
         ra.x,
         ra.events,
@@ -285,15 +313,10 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
         atol=1e-9,
         inconsistent_decisions=ra.inconsistent,
     )
-
-    # 3. baseline B ----------------------------------------------------------------------------
-    times, rb = timed(
-        lambda: B.simulate_tanh(fast, x0, inputs, sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9), rep
-    )
     record(
         "tanh_lsoda",
         "B: scipy LSODA tanh eps=1e-3 1e-6",
-        times,
+        t_b,
         rb.t,
         rb.x,
         None,
@@ -303,35 +326,17 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
         atol=1e-9,
         eps=1e-3,
     )
-
-    # 4. ours ----------------------------------------------------------------------------------
-    model = dtr.model
-    n_rep = 5 if quick else 15
-
-    def run_ours(opts: SimulationOptions) -> tuple[list[float], list[float], Any]:
-        simulate(model, x0, inputs, t_end=sc.t_end, options=opts)  # warm-up
-        times, kern = [], []
-        res = None
-        for _ in range(n_rep):
-            tic = time.perf_counter()
-            res = simulate(model, x0, inputs, t_end=sc.t_end, options=opts)
-            times.append(time.perf_counter() - tic)
-            kern.append(res.stats["wall_time_s"])
-        return times, kern, res
-
-    default = SimulationOptions()
-    times, kern, res = run_ours(default)
     record(
         "ours_default",
         f"ours default (rtol {default.rtol:g})",
-        times,
+        t_o,
         res.t,
         res.x,
         ours_events(res),
         nfev=res.stats["nfev"],
         steps=res.stats["steps"],
         rejected=res.stats["rejected"],
-        kernel_time_s=statistics.median(kern),
+        kernel_time_s=statistics.median(k_o),
         rtol=default.rtol,
         atol=default.atol,
         h_max=default.h_max,
@@ -347,7 +352,12 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
     rtols = (1e-4, 1e-6, 1e-8) if quick else (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
     for rt in rtols:
         opts = SimulationOptions(rtol=rt, atol=rt * 1e-2)
-        times, kern, res = run_ours(opts)
+        run_ours_once(opts)  # warm-up
+        times, kern = [], []
+        for _ in range(OURS_SWEEP_REPEATS):
+            dt_o, res = run_ours_once(opts)
+            times.append(dt_o)
+            kern.append(res.stats["wall_time_s"])
         record(
             f"ours_rtol_{rt:.0e}",
             f"ours rtol {rt:.0e}",

@@ -111,7 +111,7 @@ def run_simulation(
     for invalid options and :class:`RunError` if the simulation fails.
     """
     from .metrics import engagement_metrics, json_ready
-    from .simulate import SimulationOptions, ZenoError, simulate
+    from .simulate import SimulationOptions, ZenoError
 
     tic = time.perf_counter()
     try:
@@ -123,11 +123,11 @@ def run_simulation(
         raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
     try:
         dt: Any = scenario.drivetrain(params, kind=kind)  # Any: Drivetrain's slots are untyped
-        x0 = scenario.initial_state(dt)
+        scenario.initial_state(dt)  # validates the initial state for this model
     except ValueError as exc:
         raise InputError(f"scenario {scenario.name!r}: {_msg(exc)}") from None
     try:
-        res = simulate(dt.model, x0, scenario.input_signals(), t_end=float(t_stop), options=opts)
+        res = scenario.run(dt, options=opts, t_end=float(t_stop))
     except (ZenoError, RuntimeError) as exc:
         raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
 

@@ -45,7 +45,10 @@ from .params import DrivetrainParams
 from .signals import Signal, constant, ramp, step
 from .units import kmh_to_m_s, rpm_to_rad_s
 
-__all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError"]
+__all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError", "CONTROLLERS"]
+
+#: closed-loop controllers a scenario can name
+CONTROLLERS: tuple[str, ...] = ("law6",)
 
 
 class ScenarioError(ValueError):
@@ -68,6 +71,9 @@ class Scenario:
     twist_torque0: float
     inputs: tuple[tuple[str, Signal], ...]
     clutch_locked0: bool = False
+    controller: str | None = None
+    reference: Signal | None = None
+    pedal0: float = 0.11
 
     def __post_init__(self) -> None:
         if not (
@@ -88,12 +94,50 @@ class Scenario:
             raise ScenarioError(
                 f"{self.name}: unknown input(s) {sorted(unknown)}; inputs: {INPUTS}"
             )
-        missing = set(INPUTS) - set(names)
+        needed = set(INPUTS) - ({"pedal"} if self.controller else set())
+        missing = needed - set(names)
         if missing:
             raise ScenarioError(f"{self.name}: missing input(s) {sorted(missing)}")
+        if self.controller is not None:
+            if self.controller not in CONTROLLERS:
+                raise ScenarioError(
+                    f"{self.name}: controller = {self.controller!r}: known controllers {CONTROLLERS}"
+                )
+            if "pedal" in names:
+                raise ScenarioError(
+                    f"{self.name}: inputs.pedal is driven by the controller; remove it"
+                )
+            if self.reference is None:
+                raise ScenarioError(
+                    f"{self.name}: controller {self.controller!r} needs a reference"
+                )
 
     def input_signals(self) -> dict[str, Signal]:
         return dict(self.inputs)
+
+    def make_controller(self, dt: Drivetrain) -> Any:
+        """The closed-loop controller of this scenario for drivetrain ``dt`` (None: open loop)."""
+        if self.controller is None:
+            return None
+        from .closedloop import law6_controller
+
+        assert self.reference is not None
+        driven = "omega_disc" if dt.kind == "full" else "omega_primary"
+        return law6_controller(dt.params, reference=self.reference, driven_state=driven)
+
+    def run(self, dt: Drivetrain, *, options: Any = None, t_end: float | None = None) -> Any:
+        """Simulate this scenario on ``dt`` (open or closed loop); returns a SimulationResult."""
+        from .simulate import simulate
+
+        return simulate(
+            dt.model,
+            self.initial_state(dt),
+            self.input_signals(),
+            t_end=self.t_end if t_end is None else t_end,
+            options=options,
+            controller=self.make_controller(dt),
+            controller_initial=self.pedal0,
+        )
 
     def drivetrain(self, params: DrivetrainParams, *, kind: str = "full") -> Drivetrain:
         """The drivetrain of this scenario (its gear and slope) from ``params``."""
@@ -127,10 +171,22 @@ class Scenario:
                 "clutch_locked": self.clutch_locked0,
             },
             "inputs": {n: s.to_dict() for n, s in self.inputs},
+            **(
+                {
+                    "controller": {
+                        "law": self.controller,
+                        "reference_rpm": (self.reference * (30.0 / math.pi)).to_dict(),
+                        "pedal0": self.pedal0,
+                    }
+                }
+                if self.controller is not None and self.reference is not None
+                else {}
+            ),
         }
 
 
-_TOP = {"name", "description", "gear", "slope_percent", "t_end", "initial", "inputs"}
+_TOP = {"name", "description", "gear", "slope_percent", "t_end", "initial", "inputs", "controller"}
+_CONTROLLER = {"law", "reference_rpm", "pedal0"}
 _INITIAL = {"engine_speed_rpm", "vehicle_speed_kmh", "throttle", "twist_torque", "clutch_locked"}
 
 
@@ -168,8 +224,29 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
     locked = ini.get("clutch_locked", False)
     if not isinstance(locked, bool):
         raise ScenarioError(f"initial.clutch_locked = {locked!r}: must be true or false")
+    ctl = d.get("controller")
+    law: str | None = None
+    reference: Signal | None = None
+    pedal0 = 0.11
+    if ctl is not None:
+        if not isinstance(ctl, dict):
+            raise ScenarioError("controller: must be a table")
+        _reject_unknown("controller.", set(ctl), _CONTROLLER)
+        law = str(ctl.get("law", ""))
+        if "reference_rpm" not in ctl:
+            raise ScenarioError("controller.reference_rpm: missing")
+        try:
+            reference = Signal.from_dict(ctl["reference_rpm"], name="controller.reference_rpm") * (
+                math.pi / 30.0
+            )
+        except (TypeError, ValueError) as exc:
+            raise ScenarioError(str(exc)) from exc
+        if "pedal0" in ctl:
+            pedal0 = _num("controller.", ctl, "pedal0")
     sigs = []
     for n in INPUTS:
+        if n == "pedal" and law is not None:
+            continue
         if n not in inputs:
             raise ScenarioError(f"inputs.{n}: missing")
         try:
@@ -190,6 +267,9 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         throttle0=_num("initial.", ini, "throttle"),
         twist_torque0=float(ini.get("twist_torque", 0.0)),
         inputs=tuple(sigs),
+        controller=law,
+        reference=reference,
+        pedal0=pedal0,
     )
 
 
@@ -236,7 +316,30 @@ def builtin_scenarios() -> dict[str, Scenario]:
             ("brake", constant(0.0)),
         ),
     )
-    return {engage.name: engage, tip.name: tip}
+    paper = Scenario(
+        name="paper-start",
+        description=(
+            "The paper's start (Section IV, Fig. 14) under control law (6): vehicle at rest, "
+            "engine idling at 1000 rpm, clutch open; at 0.5 s the engine-speed reference rises to "
+            "1600 rpm and the throttle opens; at 1.5 s the driver reduces the engine torque; the "
+            "law keeps the engine on the reference until lock-up, then the clutch is closed."
+        ),
+        gear=1,
+        slope=0.0,
+        t_end=3.5,
+        omega_engine0=float(rpm_to_rad_s(1000.0)),
+        v_vehicle0=0.0,
+        throttle0=0.2,
+        twist_torque0=0.0,
+        inputs=(
+            ("throttle", constant(0.2) + step(0.5, 0.5) + step(1.5, -0.2)),
+            ("brake", constant(0.0)),
+        ),
+        controller="law6",
+        reference=constant(float(rpm_to_rad_s(1000.0))) + step(0.5, float(rpm_to_rad_s(600.0))),
+        pedal0=0.11,
+    )
+    return {engage.name: engage, tip.name: tip, paper.name: paper}
 
 
 def load_scenario(source: str | Path) -> Scenario:
