@@ -431,7 +431,7 @@ class FastFlatSystem(FlatGeometry):
         K, b1, c1 = eng.K, eng.b1, eng.c1
         b2, b3, b4, b5 = clu.b2, dmp.b3, gbx.b4, drl.b5
         fr_d = s_d * dmp.k23
-        b34, taur, Dc, invDc = gbx.b34, self.tau_r, self.D_c, 1.0 / self.D_c
+        b34, taur, invDc = gbx.b34, self.tau_r, 1.0 / self.D_c
         h45w, b45, h56, b56 = drl.h45 / self.D_c, drl.b45, drl.h56, drl.b56
         T_t = s_t * self.k_w * self.R_p
         invR = 1.0 / self.R_p
@@ -458,7 +458,6 @@ class FastFlatSystem(FlatGeometry):
                 -bv * v - cq * v * abs(v) + T_t * invR + ld6,
             ]
 
-        del Dc
         return forces
 
     def accel_lam(
@@ -661,11 +660,8 @@ class LiteralFlatSystem(FlatGeometry):
 # ------------------------------------------------------------------------------------------------
 
 
-def _regions(
-    sys: FlatGeometry, x: F64, u: Sequence[float], ub: Sequence[float], prev: Sequence[int] | None
-) -> tuple[int, ...]:
+def _regions(sys: FlatGeometry, x: F64, u: Sequence[float], ub: Sequence[float]) -> tuple[int, ...]:
     """Region of each table; an argument on a knee (within 1e-10) goes to the side it moves to."""
-    del prev
     args = sys.table_args(x, u)
     rates = sys.table_rates(x, ub)
     out = []
@@ -727,7 +723,7 @@ def decide(
     forced = dict(forced or {})
     consistent = True
     for _rep in range(10):
-        reg = _regions(sys, x, u, ub, prev_reg)
+        reg = _regions(sys, x, u, ub)
         caps = sys.capacities(u, reg)
         rates = sys.capacity_rates(ub, reg)
         w = sys.rel_speeds(x)
@@ -748,7 +744,7 @@ def decide(
                 else:
                     cand.append(f)
         sys.project(x, near)
-        reg = _regions(sys, x, u, ub, prev_reg)
+        reg = _regions(sys, x, u, ub)
         caps = sys.capacities(u, reg)
         best, best_v = None, math.inf
         if cand:
@@ -1216,7 +1212,7 @@ def check_fast_against_reference(
             x[6] = x[5] * fast.R_p + rng.normal(0.0, 1e-3)
         u = (float(rng.uniform(0, 1)), float(rng.uniform(0.02, 0.12)), float(rng.uniform(0, 500)))
         modes = tuple(int(v) for v in rng.integers(0, 4, 6))
-        reg = _regions(fast, x, u, (0.0, 0.0, 0.0), None)
+        reg = _regions(fast, x, u, (0.0, 0.0, 0.0))
         piece = Piece(0.0, u, (0.0, 0.0, 0.0), ())
         md = fast.mode_dict(modes)
         ref = full_reference_rhs(params, gear, slope, x, np.array(u), md)

@@ -549,13 +549,15 @@ def plot(per: dict[str, Any], path: Path) -> None:
             lw=1,
             label=f"reference DOP853 1e-12 ({ref['time_s']:.1f} s)",
         )
+        ax.axhline(GOAL_MS, color="C3", ls="--", lw=0.8, label=f"goal {GOAL_MS:g} ms")
+        ax.axvline(GOAL_SPEED_ERR, color="C3", ls="-.", lw=0.8, label=f"goal {GOAL_SPEED_ERR:g}")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("max speed error vs reference [rad/s, m/s]")
         ax.set_ylabel("wall time per 3-s run [ms]")
         ax.set_title(name)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
+        ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("drivetrain_ctrl.simulate: work-precision (full model)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -608,6 +610,16 @@ def print_table(per: dict[str, Any], summary: dict[str, Any]) -> None:
         print(f"  [{'met' if ok else ('n/a' if ok is None else 'NOT met')}] {g}")
 
 
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats and tolerances")
@@ -639,7 +651,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "machine": {
             "platform": platform.platform(),
             "python": platform.python_version(),
-            "processor": platform.processor(),
+            "processor": _cpu_model(),
             "cpu_count": os.cpu_count(),
             "load_avg_at_end": os.getloadavg(),
         },

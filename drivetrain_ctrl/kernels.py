@@ -1208,7 +1208,7 @@ _C_TAB = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
 _E_TAB = np.array([E1, 0.0, E3, E4, E5, E6, E7])
 
 
-@jit
+@jit_inline
 def dp5_step(  # type: ignore[no-untyped-def]
     D,
     S,
@@ -1322,11 +1322,17 @@ def dense_eval(rc, th, out):  # type: ignore[no-untyped-def]
         out[i] = rc[0, i] + th * (rc[1, i] + th1 * (rc[2, i] + th * (rc[3, i] + th1 * rc[4, i])))
 
 
-@jit
-def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
+@jit_inline
+def _guards_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards(D, y, u, fm, reg, Lam, g)
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
+
+
+@jit
+def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
+    """Plant and controller guards at (t, y): an ordinary call (outside the per-step path)."""
+    _guards_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv)
 
 
 @jit
@@ -1564,7 +1570,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         err_old = max(en, 1e-4)
         h_next = hh * min(5.0, max(0.2, fac))
         t1 = t + hh if not hit_stop else t_stop
-        _guards_at(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv)
+        _guards_inl(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv)
         j = _fired(g0, g1)
         if j < 0:
             t = t1
