@@ -670,12 +670,8 @@ def _regions(sys: FlatGeometry, x: F64, u: Sequence[float], ub: Sequence[float])
         r = law.region(a)
         for i, b in enumerate(law.bounds):
             if abs(a - b) <= 1e-10:
-                if da > 0.0:
-                    r = i + 1
-                elif da < 0.0:
-                    r = i
-                else:  # not moving: the bound belongs to the region below (as in the kernel)
-                    r = i
+                # not moving: the bound belongs to the region below (as in the kernel)
+                r = i + 1 if da > 0.0 else i
                 break
         out.append(r)
     return tuple(out)
@@ -717,7 +713,10 @@ def decide(
     tol_w: float = 1e-9,
 ) -> tuple[tuple[int, ...], tuple[int, ...], bool]:
     """Modes and regions at ``(t, x)`` (``x`` is projected in place). ``forced`` maps elements
-    that must break loose to their slip mode. Returns (modes, regions, consistent)."""
+    that must break loose to their slip mode. Returns (modes, regions, consistent).
+
+    The decision depends on the state only; ``prev_modes`` / ``prev_reg`` are not used (kept for
+    the call sites' readability)."""
     u = piece.u(t)
     ub = piece.b
     forced = dict(forced or {})

@@ -225,6 +225,25 @@ class Controller:
         return np.array(out, dtype=float)
 
 
+def _law6_blocks(params: Any, engine_state: str, driven_state: str) -> dict[str, Any]:
+    """The nonlinear blocks around law (6): measurement w_r - w_1, sign of w_1 - w_3, offset
+    x_r0, the actuator stroke as saturation, the second-order actuator, and a latch that closes the
+    clutch at ``engage_rate`` once it locks."""
+    lw, act = params.law6, params.actuator
+    return {
+        "measurement": ((1.0, "ref"), (-1.0, engine_state)),
+        "output": "pedal",
+        "sign_of": (engine_state, driven_state),
+        "offset": lw.x_r0,
+        "saturation": (act.x_min, act.x_max),
+        "actuator": Actuator(act.omega_a, act.delta_a),
+    }
+
+
+def _engage_latch(params: Any, rate: float | None) -> LatchRamp | None:
+    return LatchRamp("clutch", "stuck", rate, float(params.clutch.pedal_map.x[0])) if rate else None
+
+
 def law6_controller(
     params: Any,
     *,
@@ -241,19 +260,12 @@ def law6_controller(
     latch). ``driven_state`` is the clutch's driven side (``omega_disc`` in the full model,
     ``omega_primary`` in the reduced one).
     """
-    lw, act = params.law6, params.actuator
-    x_engaged = float(params.clutch.pedal_map.x[0])
     return Controller(
         name="law6",
-        lti=control.ss([], [], [], [[lw.k_r]]),
-        measurement=((1.0, "ref"), (-1.0, engine_state)),
+        lti=control.ss([], [], [], [[params.law6.k_r]]),
         reference=reference,
-        output="pedal",
-        sign_of=(engine_state, driven_state),
-        offset=lw.x_r0,
-        saturation=(act.x_min, act.x_max),
-        latch=LatchRamp("clutch", "stuck", engage_rate, x_engaged) if engage_rate else None,
-        actuator=Actuator(act.omega_a, act.delta_a),
+        latch=_engage_latch(params, engage_rate),
+        **_law6_blocks(params, engine_state, driven_state),
     )
 
 
@@ -267,6 +279,7 @@ def pi_controller(
     delay_samples: int = 0,
     engine_state: str = "omega_engine",
     driven_state: str = "omega_disc",
+    engage_rate: float | None = 0.05,
 ) -> Controller:
     """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``.
 
@@ -276,17 +289,11 @@ def pi_controller(
         lti = control.ss([[0.0]], [[1.0]], [[ki]], [[kp]])
     else:
         lti = control.ss([[1.0]], [[dt]], [[ki]], [[kp]], dt)
-    lw, act = params.law6, params.actuator
     return Controller(
         name="pi",
         lti=lti,
-        measurement=((1.0, "ref"), (-1.0, engine_state)),
         reference=reference,
-        output="pedal",
-        sign_of=(engine_state, driven_state),
-        offset=lw.x_r0,
-        saturation=(act.x_min, act.x_max),
-        latch=LatchRamp("clutch", "stuck", 0.05, float(params.clutch.pedal_map.x[0])),
-        actuator=Actuator(act.omega_a, act.delta_a),
+        latch=_engage_latch(params, engage_rate),
         delay_samples=delay_samples,
+        **_law6_blocks(params, engine_state, driven_state),
     )

@@ -170,8 +170,12 @@ def _apply_coupling(D: ChainData, f_or_c: int, kind: int, T: float, tau: F64) ->
 
 
 @jit_inline
-def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> None:
-    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques.
+def forces_into(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64, ff: F64, ff_off: int
+) -> None:
+    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques; if
+    ``ff_off >= 0`` also each friction element's signed kinetic torque into ``ff[ff_off + f]``
+    (0 unless slipping).
 
     Hot path: written without helper calls (each call costs reference counting of its array
     arguments, which made this function 10x slower; measured in benchmarks/bench_kernels.py).
@@ -205,6 +209,8 @@ def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> No
         tau[c + 1] += ratio[c] * T
     for f in range(D.f_kind.shape[0]):
         m = fm[f]
+        if ff_off >= 0:
+            ff[ff_off + f] = 0.0
         if m == SLIP_POS or m == SLIP_NEG:
             i = D.f_idx[f]
             coupled = D.f_kind[f] == 0
@@ -226,6 +232,8 @@ def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> No
                 F *= np.tanh(w / D.f_eps[f])
             elif m == SLIP_NEG:
                 F = -F
+            if ff_off >= 0:
+                ff[ff_off + f] = F
             tau[i] -= F
             if coupled:
                 tau[i + 1] += ratio[i] * F
@@ -235,7 +243,7 @@ def forces_into(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64) -> No
 def forces(D: ChainData, x: F64, u: F64, fm: I64, reg: I64) -> F64:
     """Generalised torques on the bodies [N m or N], without the stuck (constraint) torques."""
     tau = np.empty(D.M.shape[0])
-    forces_into(D, x, u, fm, reg, tau)
+    forces_into(D, x, u, fm, reg, tau, tau, -1)
     return tau
 
 
@@ -259,7 +267,7 @@ def rhs_into(
     """
     n = D.M.shape[0]
     m = D.ratio.shape[0]
-    forces_into(D, x, u, fm, reg, tau)
+    forces_into(D, x, u, fm, reg, tau, pd, n + m if energy else -1)
     for i in range(n):
         acc = 0.0
         for k in range(n):
@@ -291,33 +299,12 @@ def rhs_into(
     for c in range(m):
         w = x[c] - D.ratio[c] * x[c + 1]
         pd[n + c] = D.damp[c] * w * w
-    t_s = D.t_s
-    t_o = D.t_o
     for f in range(D.f_kind.shape[0]):
-        mf = fm[f]
-        pdf = 0.0
-        if mf == SLIP_POS or mf == SLIP_NEG:
-            i = D.f_idx[f]
-            w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
-            ui = D.f_uidx[f]
-            F = D.f_scale[f]
-            if ui >= 0:
-                kt = D.f_table[f]
-                if kt < 0:
-                    F *= u[ui]
-                else:
-                    r = reg[kt]
-                    F *= t_s[kt, r] * u[ui] + t_o[kt, r]
-            kmu = D.f_mu[f]
-            if kmu >= 0:
-                r = reg[kmu]
-                F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
-            # s w, not |w|: the smooth extension of the mode a stage may sample past w = 0
-            if D.f_eps[f] > 0.0:
-                pdf = F * np.tanh(w / D.f_eps[f]) * w
-            else:
-                pdf = F * w if mf == SLIP_POS else -F * w
-        pd[n + m + f] = pdf
+        # kinetic torque (from forces_into) times s w, not |w|: the smooth extension of the mode
+        # that a stage may sample just past w = 0
+        i = D.f_idx[f]
+        w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
+        pd[n + m + f] *= w
     return p_in
 
 
@@ -463,7 +450,7 @@ def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) ->
             any_stuck = True
     tau = np.empty(n)
     if any_stuck:
-        forces_into(D, x, u, fm, reg, tau)
+        forces_into(D, x, u, fm, reg, tau, tau, -1)
     for f in range(nf):
         m = fm[f]
         i = D.f_idx[f]
