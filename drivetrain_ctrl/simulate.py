@@ -159,6 +159,21 @@ class SimulationResult:
             out[i] = K.coupling_torques(D, self.x[i], self.u[i], self.fm[i], self.reg[i], Lam)
         return out
 
+    def source_torques(self) -> dict[str, F64]:
+        """Torque [N m] of every lagged source (the engine's C_G) at every sample."""
+        D = self.model.data
+        out: dict[str, F64] = {}
+        for j, src in enumerate(self.model.chain.sources):
+            lag = self.x[:, int(D.l_x[j])]
+            gain = np.full(lag.shape, float(D.l_gain[j]))
+            kt = int(D.l_table[j])
+            if kt >= 0:
+                w = self.x[:, int(D.l_body[j])]
+                r = self.reg[:, kt]
+                gain = gain * (D.t_s[kt, r] * w + D.t_o[kt, r])
+            out[src.name] = gain * lag
+        return out
+
     def stored_energy(self) -> F64:
         """(N,) stored energy [J] evaluated from the state."""
         return np.array([K.stored_energy(self.model.data, xi) for xi in self.x])
@@ -206,8 +221,15 @@ class SimulationResult:
         for j, nm in enumerate(self.model.input_names):
             cols[f"input_{nm}"] = self.u[:, j]
         T = self.coupling_torques()
+        bodies = self.model.chain.bodies
         for c, cp in enumerate(self.model.chain.couplings):
-            cols[f"T_{cp.name} [N m]"] = T[:, c]
+            up = "N m" if bodies[c].kind == "rotational" else "N"
+            cols[f"T_{cp.name} [{up}]"] = T[:, c]
+            if bodies[c + 1].kind == "translational" and bodies[c].kind == "rotational":
+                # e.g. the tyre: the force on the vehicle
+                cols[f"F_{cp.name} [N]"] = cp.ratio * T[:, c]
+        for name, torque in self.source_torques().items():
+            cols[f"C_{name} [N m]"] = torque
         for fi in self.model.frictions:
             cols[f"mode_{fi.name}"] = self.mode_series(fi.name)
         for ti in self.model.tables:

@@ -153,3 +153,43 @@ def test_pi_variant_of_law6_runs_on_the_switching_plant(discrete: bool) -> None:
     # the integral state is really used: PI and law (6) differ
     law6 = sc.run(dt)
     assert abs(np.interp(1.2, res.t, w) - np.interp(1.2, law6.t, law6.state("omega_engine"))) > 1.0
+
+
+def test_rate_limiter_ramps_at_its_rate_then_follows() -> None:
+    rate, gain, target = 20.0, 1000.0, 10.0
+    c = Controller(
+        lti=control.ss([], [], [], [[0.0]]),
+        measurement=((1.0, "omega_b"),),
+        output="torque",
+        offset=target,
+        rate_limit=(rate, gain),
+    )
+    res = simulate(_one_body(), np.array([0.0]), {}, t_end=1.0, controller=c, options=OPTS)
+    # limited: r = rate t until gain (target - r) = rate, i.e. r = target - rate / gain
+    t_k = (target - rate / gain) / rate
+    early = res.t < t_k
+    np.testing.assert_allclose(res.u[early, 0], rate * res.t[early], atol=1e-9)
+    late = res.t > t_k
+    expected = target - rate / gain * np.exp(-gain * (res.t[late] - t_k))
+    np.testing.assert_allclose(res.u[late, 0], expected, atol=1e-8)
+
+
+def test_lookup_table_shapes_the_output_and_its_knees_are_events() -> None:
+    from drivetrain_ctrl.chain import PwlTable
+
+    # torque = table(omega): 10 N m below 5 rad/s, falling to 0 at 15 rad/s
+    c = Controller(
+        lti=control.ss([], [], [], [[1.0]]),
+        measurement=((1.0, "omega_b"),),
+        output="torque",
+        lookup=PwlTable((5.0, 15.0), (10.0, 0.0)),
+    )
+    res = simulate(_one_body(), np.array([0.0]), {}, t_end=3.0, controller=c, options=OPTS)
+    # phase 1: w = 10 t / J until w = 5 at t1 = 0.25 s; phase 2: J w' = (15 - w), w -> 15
+    t1 = 5.0 * J / 10.0
+    w = res.state("omega_b")
+    ph1 = res.t <= t1
+    np.testing.assert_allclose(w[ph1], 10.0 * res.t[ph1] / J, atol=1e-9)
+    ph2 = res.t > t1
+    np.testing.assert_allclose(w[ph2], 15.0 - 10.0 * np.exp(-(res.t[ph2] - t1) / J), atol=1e-7)
+    assert np.any(np.isclose(res.t, t1, atol=1e-12))  # the knee is a stop of the integrator
