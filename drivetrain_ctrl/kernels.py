@@ -18,7 +18,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.typed import Dict
 from numpy.typing import NDArray
 
 #: compiled, cached; numpy error model (no Python exceptions on division: ~2x faster)
@@ -28,7 +29,7 @@ jit_inline = njit(cache=True, error_model="numpy", inline="always")
 #: the per-step path, compiled without numba's reference counting (NRT): such a function must not
 #: allocate; it only reads and writes the arrays it is given. Reference counting of the ~60 array
 #: arguments cost two thirds of the step time (perf: atomic inc/dec in NRT_incref/NRT_decref).
-jit_nonrt = njit(cache=True, error_model="numpy", _nrt=False)
+jit_nonrt = njit(cache=True, error_model="numpy", _nrt=False)  # type: ignore[call-overload]
 
 STUCK, SLIP_POS, SLIP_NEG, OPEN = 0, 1, 2, 3
 ARG_TWIST, ARG_SLIP, ARG_SPEED, ARG_INPUT = 0, 1, 2, 3
@@ -1396,6 +1397,44 @@ def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
     return P, Lam
 
 
+#: |lambda| h of the fastest mode allowed per step: inside Dormand-Prince 5(4)'s stability region
+#: (which reaches about 3.3 on the negative real axis and beyond 3 on the imaginary axis) with a
+#: margin, so that a loose tolerance cannot let a stiff, lightly damped mode (the gear mesh) grow
+#: numerically and trigger spurious stick/slip events.
+STABILITY_FACTOR = 2.5
+
+
+@jit
+def _mode_key(fm, reg):  # type: ignore[no-untyped-def]
+    key = np.int64(7)
+    for f in range(fm.shape[0]):
+        key = key * np.int64(1000003) + np.int64(fm[f] + 1)
+    for k in range(reg.shape[0]):
+        key = key * np.int64(1000003) + np.int64(reg[k] + 1)
+    return key
+
+
+@jit
+def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
+    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
+    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
+    key = _mode_key(fm, reg)
+    if key in cache:
+        return cache[key]
+    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+    lam = np.linalg.eigvals(
+        J.astype(np.complex128)
+    )  # complex: a real J may have complex eigenvalues
+    rho = 0.0
+    for i in range(lam.shape[0]):
+        a = abs(lam[i])
+        if a > rho:
+            rho = a
+    h = STABILITY_FACTOR / rho if rho > 0.0 else np.inf
+    cache[key] = h
+    return h
+
+
 @jit
 def simulate_kernel(  # type: ignore[no-untyped-def]
     D,
@@ -1491,6 +1530,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         cl_sample(Cd, cs, y, sv)
         t_sample = t + Ts
     P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+    hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
+    h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
     h = h_init
     full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
     Ks[0, :] = dy
@@ -1518,7 +1559,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             t_stop = bps[ib]
         if t_sample < t_stop:
             t_stop = t_sample
-        hh = min(h, h_max)
+        hh = min(h, h_max, h_stab)
         hit_stop = hh >= t_stop - t
         if hit_stop:
             hh = t_stop - t
@@ -1625,6 +1666,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             for e in range(n_old, n_ev):
@@ -1664,6 +1706,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
                 status = MAX_EVENTS
