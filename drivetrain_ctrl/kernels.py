@@ -527,7 +527,9 @@ def _consistency(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, cap
             continue
         if fm[f] == STUCK:
             lim = D.f_static[f] * caps[f]
-            ex = abs(lam[f]) - lim * (1.0 + 1e-12) - 1e-12
+            # no tolerance: the guard check after a decision has none either (a stuck torque a
+            # hair above capacity would re-fire the guard at once, again and again)
+            ex = abs(lam[f]) - lim
             if ex > 0.0:
                 viol += ex / (lim + 1e-300)
         else:
@@ -1374,15 +1376,44 @@ def _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_
     return n_ev
 
 
+@jit_nonrt
+def _accept(y, y1, Ks, g0, g1):  # type: ignore[no-untyped-def]
+    """Take an accepted step: y <- y1, k1 <- k7 (FSAL), guards at the start <- at the end."""
+    for i in range(y.shape[0]):
+        y[i] = y1[i]
+        Ks[0, i] = Ks[6, i]
+    for i in range(g0.shape[0]):
+        g0[i] = g1[i]
+
+
+@jit_nonrt
+def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):  # type: ignore[no-untyped-def]
+    """Store sample ``n_rec`` (the arrays have room for it)."""
+    T[n_rec] = t
+    for i in range(y.shape[0]):
+        Y[n_rec, i] = y[i]
+    for i in range(u.shape[0]):
+        U[n_rec, i] = u[i]
+    for i in range(fm.shape[0]):
+        FM[n_rec, i] = fm[i]
+    for i in range(reg.shape[0]):
+        RG[n_rec, i] = reg[i]
+
+
 @jit
 def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0):  # type: ignore[no-untyped-def]
-    """Decide plant modes and controller states together until no guard fires."""
+    """Decide plant modes and controller states together until no guard fires.
+
+    Returns ``(P, Lam, n_bad)``; ``n_bad`` counts decisions where no combination was consistent
+    (the least inconsistent was taken) or guards still fired after 20 rounds."""
     P = np.zeros((1, 1))
     Lam = np.zeros((1, 1))
     ok = False
+    n_bad = 0
     for _rep in range(20):
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        decide_modes(D, y, u, fm, reg, tol_w)
+        # only the last round counts: a first round may be inconsistent before the projection
+        n_bad = 1 if decide_modes(D, y, u, fm, reg, tol_w) < 0 else 0
         cl_update(Cd, cs, y, nx, t, sv, fm)
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
         P, Lam = mode_matrices(D, fm)
@@ -1394,7 +1425,9 @@ def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
                 ok = False
         if ok:
             break
-    return P, Lam
+    if not ok:
+        n_bad = 1
+    return P, Lam, n_bad
 
 
 #: |lambda| h of the fastest mode allowed per step: inside Dormand-Prince 5(4)'s stability region
@@ -1525,11 +1558,13 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     g0 = np.empty(ng)
     g1 = np.empty(ng)
     gtry = np.empty(ng)
+    n_incons = 0
     if t_sample <= t:
         eval_inputs(S, ua, ub, t, t_ref, sv)
         cl_sample(Cd, cs, y, sv)
         t_sample = t + Ts
-    P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+    P, Lam, nb = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+    n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
     h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
     h = h_init
@@ -1618,9 +1653,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         j = _fired(g0, g1)
         if j < 0:
             t = t1
-            y[:] = y1
-            Ks[0, :] = Ks[6]
-            g0[:] = g1
+            _accept(y, y1, Ks, g0, g1)
         else:
             # locate the event on the continuous extension: Illinois on guard j in theta
             dense_coeffs(y, y1, Ks, hh, rc)
@@ -1665,7 +1698,10 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             y[:] = yhi
             fm_old[:] = fm
             reg_old[:] = reg
-            P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+            P, Lam, nb = _decide_all(
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+            )
+            n_incons += nb
             h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
@@ -1705,7 +1741,10 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
             fm_old[:] = fm
             reg_old[:] = reg
-            P, Lam = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+            P, Lam, nb = _decide_all(
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+            )
+            n_incons += nb
             h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
@@ -1738,11 +1777,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             R2[:n_rec] = RG[:n_rec]
             RG = R2
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        T[n_rec] = t
-        Y[n_rec] = y
-        U[n_rec] = u
-        FM[n_rec] = fm
-        RG[n_rec] = reg
+        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
         n_rec += 1
 
     n_knee = 0
@@ -1766,4 +1801,5 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         n_rej,
         nfev,
         n_knee,
+        n_incons,
     )

@@ -386,9 +386,8 @@ def simulate(
         len(model.input_names),
     )
     wall = time.perf_counter() - tic
-    T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el, t_last, nsteps, nrej, nfev, nknee = (
-        out
-    )
+    (T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el) = out[:11]
+    (t_last, nsteps, nrej, nfev, nknee, nincons) = out[11:]
     nx = model.nx
     nxs = nx + y_cl0.shape[0]
     events = []
@@ -413,6 +412,8 @@ def simulate(
             "rejected": int(nrej),
             "nfev": int(nfev),
             "knee_crossings": int(nknee),
+            # decisions where no mode combination was consistent (least inconsistent taken)
+            "inconsistent_decisions": int(nincons),
             "wall_time_s": wall,
         },
         extras={"controller_states": Y[:, nx:nxs]} if controller is not None else {},

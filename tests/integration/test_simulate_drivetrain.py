@@ -53,6 +53,8 @@ def run(
 def test_builtin_scenario_ok_and_energy_balanced(name: str, kind: str) -> None:
     res = run(name, kind)
     assert res.status == "ok"
+    # every mode decision found a consistent combination (no guard re-fired after a decision)
+    assert res.stats["inconsistent_decisions"] == 0
     assert res.t[-1] == scenario(name).t_end
     assert np.all(np.diff(res.t) >= 0.0)
     assert np.all(np.isfinite(res.x))
