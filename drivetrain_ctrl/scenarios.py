@@ -349,8 +349,11 @@ def load_scenario(source: str | Path) -> Scenario:
         return b[source]
     p = Path(source)
     if not p.suffix == ".toml" or not p.exists():
+        close = difflib.get_close_matches(str(source), sorted(b), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
         raise ScenarioError(
-            f"scenario {str(source)!r}: not a built-in scenario ({sorted(b)}) nor an existing .toml file"
+            f"scenario {str(source)!r}: not a built-in scenario ({sorted(b)}) "
+            f"nor an existing .toml file{hint}"
         )
     with p.open("rb") as fh:
         try:
