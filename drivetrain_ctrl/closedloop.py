@@ -285,6 +285,11 @@ def pi_controller(
 
     Continuous, or discrete (``dt`` [s], forward-Euler integrator) with ``delay_samples``.
     """
+    for name, v in (("kp", kp), ("ki", ki)):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"pi_controller: {name} = {v!r} must be a finite number")
+    if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise ValueError(f"pi_controller: dt = {dt!r} [s] must be a finite number > 0 (or None)")
     if dt is None:
         lti = control.ss([[0.0]], [[1.0]], [[ki]], [[kp]])
     else:

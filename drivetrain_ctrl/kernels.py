@@ -77,7 +77,8 @@ class ChainData(NamedTuple):
 
 
 # Helpers take the arrays they need, not ChainData: passing the 33-array tuple into a helper costs
-# about 0.6 us per call in reference counting (measured with /tmp profiling, see benchmarks/).
+# about 0.6 us per call in reference counting (measured during development with perf and
+# micro-benchmarks; the end-to-end effect is in benchmarks/bench_simulate.py).
 @jit_inline
 def _rel(f_kind, f_idx, ratio, f, x):  # type: ignore[no-untyped-def]
     i = f_idx[f]
@@ -166,15 +167,6 @@ def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
 
 
 @jit_inline
-def _apply_coupling(D: ChainData, f_or_c: int, kind: int, T: float, tau: F64) -> None:
-    if kind == 0:
-        tau[f_or_c] -= T
-        tau[f_or_c + 1] += D.ratio[f_or_c] * T
-    else:
-        tau[f_or_c] -= T
-
-
-@jit_inline
 def forces_into(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64, ff: F64, ff_off: int
 ) -> None:
@@ -183,7 +175,7 @@ def forces_into(
     (0 unless slipping).
 
     Hot path: written without helper calls (each call costs reference counting of its array
-    arguments, which made this function 10x slower; measured in benchmarks/bench_kernels.py).
+    arguments, which made this function 10x slower when it was measured in development).
     """
     n = D.M.shape[0]
     t_s = D.t_s
@@ -833,17 +825,6 @@ E1, E3, E4, E5, E6, E7 = (
     22 / 525,
     -1 / 40,
 )
-
-
-@jit
-def signal_value(st, sv, snk, ssin, sns, i, t, t_ref):  # type: ignore[no-untyped-def]
-    """Value of signal ``i`` at ``t`` on the linear piece active at ``t_ref``."""
-    a, b = _piece(st, sv, snk, i, t_ref)
-    v = a + b * (t - t_ref)
-    for j in range(sns[i]):
-        if t_ref >= ssin[i, j, 3]:
-            v += ssin[i, j, 0] * np.sin(ssin[i, j, 1] * (t - ssin[i, j, 3]) + ssin[i, j, 2])
-    return v
 
 
 @jit_inline

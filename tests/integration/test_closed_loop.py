@@ -193,3 +193,14 @@ def test_lookup_table_shapes_the_output_and_its_knees_are_events() -> None:
     ph2 = res.t > t1
     np.testing.assert_allclose(w[ph2], 15.0 - 10.0 * np.exp(-(res.t[ph2] - t1) / J), atol=1e-7)
     assert np.any(np.isclose(res.t, t1, atol=1e-12))  # the knee is a stop of the integrator
+
+
+def test_pi_controller_rejects_bad_gains_naming_them() -> None:
+    from drivetrain_ctrl.closedloop import pi_controller
+    from drivetrain_ctrl.params import default_params
+
+    p = default_params()
+    with pytest.raises(ValueError, match="kp"):
+        pi_controller(p, reference=constant(100.0), kp=math.nan, ki=1.0)
+    with pytest.raises(ValueError, match="dt"):
+        pi_controller(p, reference=constant(100.0), kp=1.0, ki=1.0, dt=-0.01)
