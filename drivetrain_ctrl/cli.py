@@ -79,9 +79,9 @@ def _load_params(source: str) -> DrivetrainParams:
         raise InputError(f"parameters: {_msg(exc)}") from None
 
 
-def _load_scenario(source: str) -> Scenario:
+def _load_scenario(source: str, params: DrivetrainParams | None = None) -> Scenario:
     try:
-        return load_scenario(source)
+        return load_scenario(source, params=params)
     except (ValueError, OSError) as exc:  # ScenarioError is a ValueError
         raise InputError(f"scenario: {_msg(exc)}") from None
 
@@ -104,8 +104,12 @@ def run_simulation(
     rtol: float | None = None,
     t_end: float | None = None,
     plots: bool = True,
+    controller: str | None = None,
 ) -> dict[str, Any]:
     """Simulate ``scenario`` on the ``kind`` model of ``params`` and write the outputs to ``out``.
+
+    ``controller``: a built-in controller name or a controller TOML file (closed loop), None for
+    an open-loop run.
 
     Returns ``{"metrics": ..., "timing": ..., "files": [...]}``. Raises :class:`InputError`
     for invalid options and :class:`RunError` if the simulation fails.
@@ -126,15 +130,34 @@ def run_simulation(
         scenario.initial_state(dt)  # validates the initial state for this model
     except ValueError as exc:
         raise InputError(f"scenario {scenario.name!r}: {_msg(exc)}") from None
+    from .controllers import ControllerError, load_controller
+
+    spec = None
+    if controller is None and scenario.needs_controller:
+        raise InputError(
+            f"scenario {scenario.name!r} needs a controller (it gives the engine-speed reference, "
+            "not the pedal): add --controller paper|pi|paper-10ms|pi-10ms|FILE.toml"
+        )
+    if controller is not None:
+        if not scenario.needs_controller:
+            raise InputError(
+                f"--controller {controller}: scenario {scenario.name!r} is open loop (it gives the "
+                "pedal signal); drop --controller or use a closed-loop scenario (paper-start)"
+            )
+        try:
+            spec = load_controller(controller)
+        except ControllerError as exc:
+            raise InputError(f"--controller: {exc}") from None
     try:
-        res = scenario.run(dt, options=opts, t_end=float(t_stop))
+        res = scenario.run(dt, controller=spec, options=opts, t_end=float(t_stop))
     except (ZenoError, RuntimeError) as exc:
         raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
 
-    metrics = engagement_metrics(res, dt)
+    metrics = engagement_metrics(res, dt, start=scenario.start_time, reference=scenario.reference)
     record: dict[str, Any] = {
         "scenario": scenario.name,
         "parameter_set": params.name,
+        "controller": spec.to_dict() if spec is not None else None,
         "rtol": opts.rtol,
         "atol": opts.atol,
         **metrics,
@@ -181,14 +204,24 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 def _summary_line(m: dict[str, Any], timing: dict[str, Any]) -> str:
     lock = m["lockup_time_s"]
     lock_txt = f"lock-up at {lock:.4g} s" if lock is not None else "no lock-up"
+    ctl = f", controller {m['controller']['name']}" if m.get("controller") else ""
+    notes = "".join(f"\n  note: {n}" for n in m.get("notes") or [])
     return (
-        f"{m['scenario']} / {m['model']} model ({m['parameter_set']}): {m['status']}, "
+        f"{m['scenario']} / {m['model']} model ({m['parameter_set']}{ctl}): {m['status']}, "
         f"{m['n_samples']} samples, {m['n_events']} events, {timing['wall_time_s']:.3g} s\n"
         f"  {lock_txt}; clutch energy {_fmt(m['clutch_energy_J'])} J; "
         f"final speed {_fmt(m['final_vehicle_speed_kmh'])} km/h; "
         f"engine {_fmt(m['min_engine_speed_rpm'])}..{_fmt(m['max_engine_speed_rpm'])} rpm; "
         f"max jerk {_fmt(m['max_vehicle_jerk_m_s3'])} m/s^3; "
         f"energy residual {_fmt(m['energy_residual_rel'], '.2g')}"
+        + (
+            f"\n  tracking rms {_fmt(m['tracking_rms_rpm'])} rpm; "
+            f"torque match rms {_fmt(m['torque_match_rms_Nm'])} N m; "
+            f"jerk max/rms {_fmt(m['jerk_max_m_s3'])}/{_fmt(m['jerk_rms_m_s3'])} m/s^3"
+            if ctl
+            else ""
+        )
+        + notes
     )
 
 
@@ -199,13 +232,24 @@ def _summary_line(m: dict[str, Any], timing: dict[str, Any]) -> str:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     params = _load_params(args.params)
-    scenario = _load_scenario(args.scenario)
+    scenario = _load_scenario(args.scenario, params)
     out = Path(args.out)
-    r = run_simulation(scenario, params, args.model, out, rtol=args.rtol, t_end=args.t_end)
+    r = run_simulation(
+        scenario,
+        params,
+        args.model,
+        out,
+        rtol=args.rtol,
+        t_end=args.t_end,
+        controller=args.controller,
+    )
     print(_summary_line(r["metrics"], r["timing"]))
     print(f"  outputs: {out}/ ({', '.join(r['files'])})")
     return 0
 
+
+#: controllers the demo runs the closed-loop scenarios with
+DEMO_CONTROLLERS: tuple[str, ...] = ("paper", "pi")
 
 #: (metric key, label) rows of the demo summary table
 _SUMMARY_ROWS: tuple[tuple[str, str], ...] = (
@@ -227,13 +271,19 @@ _SUMMARY_ROWS: tuple[tuple[str, str], ...] = (
     ("n_events", "events"),
     ("n_samples", "samples"),
     ("energy_residual_rel", "energy residual (relative)"),
+    ("engagement_time_s", "engagement time (start to lock-up) [s]"),
+    ("tracking_rms_rpm", "tracking rms, omega_r - omega_1 [rpm]"),
+    ("torque_match_rms_Nm", "torque match rms, tau_13 - C_1 [N m]"),
+    ("jerk_max_m_s3", "max jerk, 10 Hz filtered [m/s^3]"),
+    ("accel_p2p_after_lock_m_s2", "p2p acceleration after lock-up [m/s^2]"),
+    ("n_lock_events", "clutch lock events"),
 )
 
 
 def _summary_md(
     runs: list[tuple[str, str, dict[str, Any]]], params: DrivetrainParams, quick: bool
 ) -> str:
-    scen = builtin_scenarios()
+    scen = builtin_scenarios(params)
     lines = [
         "# drivetrain-ctrl demo",
         "",
@@ -244,7 +294,8 @@ def _summary_md(
         "",
     ]
     for name, sc in scen.items():
-        lines.append(f"- `{name}` (gear {sc.gear}, {sc.t_end:g} s): {sc.description}")
+        ctl = f" Controllers: {', '.join(DEMO_CONTROLLERS)}." if sc.needs_controller else ""
+        lines.append(f"- `{name}` (gear {sc.gear}, {sc.t_end:g} s): {sc.description}{ctl}")
     lines += ["", "## Figures of merit", ""]
     heads = [f"{s} / {k}" for s, k, _ in runs]
     lines.append("| metric | " + " | ".join(heads) + " |")
@@ -284,7 +335,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     params = _load_params(args.params)
     out = Path(args.out)
     kinds = ("reduced",) if args.quick else MODELS
-    jobs = [(s, k) for s in builtin_scenarios().values() for k in kinds]
+    jobs = [
+        (s, k, c)
+        for s in builtin_scenarios(params).values()
+        for k in kinds
+        for c in (DEMO_CONTROLLERS if s.needs_controller else (None,))
+    ]
     print(
         f"{PROG} demo: {len(jobs)} runs on parameter set {params.name!r} into {out}/ "
         "(the first run compiles the simulation kernels unless they are cached)",
@@ -293,10 +349,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     done: list[tuple[str, str, dict[str, Any]]] = []
     tic = time.perf_counter()
     bar = tqdm(jobs, desc="demo", unit="run", file=sys.stderr, dynamic_ncols=True)
-    for sc, kind in bar:
-        bar.set_postfix_str(f"{sc.name} / {kind}")
-        r = run_simulation(sc, params, kind, out / f"{sc.name}-{kind}")
-        done.append((sc.name, kind, r))
+    for sc, kind, ctl in bar:
+        label = sc.name if ctl is None else f"{sc.name}-{ctl}"
+        bar.set_postfix_str(f"{label} / {kind}")
+        r = run_simulation(sc, params, kind, out / f"{label}-{kind}", controller=ctl)
+        done.append((label, kind, r))
     bar.close()
     try:
         (out / "summary.md").write_text(_summary_md(done, params, args.quick), encoding="utf-8")
@@ -418,6 +475,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--rtol", type=_positive_float, default=None, help="relative tolerance")
     sp.add_argument(
         "--t-end", type=_positive_float, default=None, help="end time [s] (default: scenario's)"
+    )
+    sp.add_argument(
+        "--controller",
+        default=None,
+        help="closed loop: paper (law 6), pi, paper-10ms, pi-10ms or a controller .toml file "
+        "(default: open loop; paper-start needs one)",
     )
     sp.set_defaults(func=_cmd_simulate)
 

@@ -11,17 +11,30 @@ compiled loop). The signal chain, in order:
 3. sign switching: times ``sign(x[a] - x[b])`` for ``sign_of = (a, b)`` state names;
 4. ``offset``; 5. ``lookup`` table; 6. ``saturation = (lo, hi)``;
 7. latch-and-ramp: when friction element ``latch.element`` enters mode ``latch.mode``, the output
-   is frozen and ramped at ``latch.rate`` [unit/s] to ``latch.target``;
+   is frozen and moved without a jump from its current value to ``latch.target`` at
+   ``latch.rate`` [unit/s]; if the element leaves that mode again (a re-slip) the latch re-arms:
+   the output continues from its current value, and the offset to the law's value ramps out at
+   the same rate (applied before the saturation);
 8. rate limiter ``rate_limit = (rate [unit/s], gain [1/s])``: ``r' = clip(gain (v - r), -rate, rate)``;
 9. second-order actuator ``omega_a^2 / (s^2 + 2 delta_a omega_a s + omega_a^2)`` (paper Sec. IV);
-the result drives plant input ``output``. Every switch of a nonlinear block (sign change, knee,
+the result drives plant input ``output``.
+
+Before ``start_time`` [s] the output is held at the simulation's ``controller_initial`` value
+(e.g. the open pedal) and the LTI states do not move. The LTI states are also frozen while the latch
+holds the output. Anti-windup (``anti_windup_time`` T_t [s], None: off) is back-calculation
+(Astrom & Hagglund): while the saturation is active the LTI state derivative gets the extra term
+``sgn C^T (v_sat - v_pre) / (|C|^2 T_t)``, which pulls the unsaturated value back to the limit with
+time constant T_t, so the integrator of a PI does not wind up while the actuator saturates. It is
+continuous across the saturation limits (unlike freezing the integrator, which makes the
+saturation state chatter when the integrator pushes outwards right at the limit).
+Every switch of a nonlinear block (sign change, knee,
 saturation and rate-limit limits, end of the ramp) is an event of the simulation.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import control
@@ -65,6 +78,14 @@ class LatchRamp:
     rate: float
     target: float
 
+    def __post_init__(self) -> None:
+        for nm in ("rate", "target"):
+            v = getattr(self, nm)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"LatchRamp.{nm} = {v!r}: must be a finite number")
+        if not self.rate > 0:
+            raise ValueError(f"LatchRamp.rate = {self.rate!r} [unit/s]: must be > 0")
+
 
 @dataclass(frozen=True, kw_only=True)
 class Controller:
@@ -84,6 +105,8 @@ class Controller:
     actuator: Actuator | None = None
     name: str = "controller"
     initial_lti_state: tuple[float, ...] | None = field(default=None)
+    start_time: float | None = None
+    anti_windup_time: float | None = None
 
     def __post_init__(self) -> None:
         sys = self.lti
@@ -107,6 +130,24 @@ class Controller:
             raise ValueError(
                 f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0"
             )
+        if self.start_time is not None and not (
+            isinstance(self.start_time, (int, float)) and math.isfinite(self.start_time)
+        ):
+            raise ValueError(
+                f"{self.name}.start_time = {self.start_time!r} [s]: must be a finite number"
+            )
+        awt = self.anti_windup_time
+        if awt is not None and not (
+            isinstance(awt, (int, float)) and math.isfinite(awt) and awt > 0
+        ):
+            raise ValueError(
+                f"{self.name}.anti_windup_time = {awt!r} [s]: must be a finite number > 0 or None"
+            )
+        if self.is_discrete and not (math.isfinite(self.lti.dt) and self.lti.dt > 0):
+            raise ValueError(f"{self.name}.lti.dt = {self.lti.dt!r} [s]: sample period must be > 0")
+        for nm, arr in (("A", sys.A), ("B", sys.B), ("C", sys.C), ("D", sys.D)):
+            if not np.all(np.isfinite(np.asarray(arr, dtype=float))):
+                raise ValueError(f"{self.name}.lti.{nm} has non-finite entries: {arr!r}")
         for c, src in self.measurement:
             if src == "ref" and self.reference is None:
                 raise ValueError(f"{self.name}.measurement uses 'ref' but no reference is given")
@@ -117,10 +158,13 @@ class Controller:
     def is_discrete(self) -> bool:
         return bool(self.lti.dt) and self.lti.dt is not True
 
-    def compile(self, model: Model) -> tuple[K.CtrlData, NDArray[np.float64], list[Signal]]:
+    def compile(
+        self, model: Model, *, hold: float = 0.0
+    ) -> tuple[K.CtrlData, NDArray[np.float64], list[Signal]]:
         """Arrays for the compiled loop: (CtrlData, discrete state, reference signals).
 
-        The continuous controller states start from :meth:`initial_states`."""
+        ``hold`` is the output before :attr:`start_time` (e.g. the open pedal position [m]). The
+        continuous controller states start from :meth:`initial_states`."""
         nu = len(model.input_names)
         m_kind, m_idx, m_coef = [], [], []
         for c, src in self.measurement:
@@ -138,8 +182,11 @@ class Controller:
         nstate = B.shape[0]
         if A.shape != (nstate, nstate):
             A = A.reshape(nstate, nstate)
-        ci = np.zeros(13, dtype=np.int64)
-        cf = np.zeros(10)
+        ci = np.zeros(K.N_CI, dtype=np.int64)
+        cf = np.zeros(K.N_CF)
+        cf[K.CF_TON] = -np.inf if self.start_time is None else float(self.start_time)
+        cf[K.CF_HOLD] = float(hold)
+        cf[K.CF_AWK] = 0.0 if self.anti_windup_time is None else 1.0 / self.anti_windup_time
         ci[K.CI_OUT] = model.input_names.index(self.output)
         disc = self.is_discrete
         ci[K.CI_DISC] = int(disc)
@@ -225,48 +272,34 @@ class Controller:
         return np.array(out, dtype=float)
 
 
-def _law6_blocks(params: Any, engine_state: str, driven_state: str) -> dict[str, Any]:
-    """The nonlinear blocks around law (6): measurement w_r - w_1, sign of w_1 - w_3, offset
-    x_r0, the actuator stroke as saturation, the second-order actuator, and a latch that closes the
-    clutch at ``engage_rate`` once it locks."""
-    lw, act = params.law6, params.actuator
-    return {
-        "measurement": ((1.0, "ref"), (-1.0, engine_state)),
-        "output": "pedal",
-        "sign_of": (engine_state, driven_state),
-        "offset": lw.x_r0,
-        "saturation": (act.x_min, act.x_max),
-        "actuator": Actuator(act.omega_a, act.delta_a),
-    }
-
-
-def _engage_latch(params: Any, rate: float | None) -> LatchRamp | None:
-    return LatchRamp("clutch", "stuck", rate, float(params.clutch.pedal_map.x[0])) if rate else None
-
-
 def law6_controller(
     params: Any,
     *,
     reference: Signal,
     engine_state: str = "omega_engine",
-    driven_state: str = "omega_disc",
+    driven_state: str = "omega_primary",
     engage_rate: float | None = 0.05,
+    start_time: float | None = None,
 ) -> Controller:
     """The paper's law (6): ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``.
 
     ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
-    ``params.actuator`` (omega_a, delta_a) with the stroke ``[x_min, x_max]`` as saturation. When the
-    clutch locks, the pedal is ramped at ``engage_rate`` [m/s] to fully engaged (``None``: no
-    latch). ``driven_state`` is the clutch's driven side (``omega_disc`` in the full model,
-    ``omega_primary`` in the reduced one).
+    ``params.actuator`` with the stroke as saturation. When the clutch locks, the pedal is ramped
+    at ``engage_rate`` [m/s] to fully engaged (``None``: no latch). A shortcut for
+    ``ControllerSpec(name="law6", law="paper").build(...)``
+    (:mod:`drivetrain_ctrl.controllers`).
     """
-    return Controller(
-        name="law6",
-        lti=control.ss([], [], [], [[params.law6.k_r]]),
+    from .controllers import ControllerSpec
+
+    spec = ControllerSpec(name="law6", law="paper", engage_rate_m_s=engage_rate or 1.0)
+    c = spec.build(
+        params,
         reference=reference,
-        latch=_engage_latch(params, engage_rate),
-        **_law6_blocks(params, engine_state, driven_state),
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
     )
+    return c if engage_rate else replace(c, latch=None)
 
 
 def pi_controller(
@@ -278,27 +311,34 @@ def pi_controller(
     dt: float | None = None,
     delay_samples: int = 0,
     engine_state: str = "omega_engine",
-    driven_state: str = "omega_disc",
+    driven_state: str = "omega_primary",
     engage_rate: float | None = 0.05,
+    start_time: float | None = None,
 ) -> Controller:
-    """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``.
-
-    Continuous, or discrete (``dt`` [s], forward-Euler integrator) with ``delay_samples``.
+    """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``,
+    with back-calculation anti-windup; continuous, or sampled every ``dt`` [s] (forward-Euler
+    integrator) with ``delay_samples``. A shortcut for ``ControllerSpec(law="pi", ...).build``.
     """
-    for name, v in (("kp", kp), ("ki", ki)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ValueError(f"pi_controller: {name} = {v!r} must be a finite number")
-    if dt is not None and not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
-        raise ValueError(f"pi_controller: dt = {dt!r} [s] must be a finite number > 0 (or None)")
-    if dt is None:
-        lti = control.ss([[0.0]], [[1.0]], [[ki]], [[kp]])
-    else:
-        lti = control.ss([[1.0]], [[dt]], [[ki]], [[kp]], dt)
-    return Controller(
-        name="pi",
-        lti=lti,
+    from .controllers import ControllerError, ControllerSpec
+
+    try:
+        spec = ControllerSpec(
+            name="pi",
+            law="pi",
+            kp=kp,
+            ki=ki,
+            sample_period_s=dt,
+            delay_samples=delay_samples,
+            engage_rate_m_s=engage_rate or 1.0,
+        )
+    except ControllerError as exc:
+        msg = str(exc).replace("sample_period_s", "dt (sample_period_s)")
+        raise ValueError(f"pi_controller: {msg}") from None
+    c = spec.build(
+        params,
         reference=reference,
-        latch=_engage_latch(params, engage_rate),
-        delay_samples=delay_samples,
-        **_law6_blocks(params, engine_state, driven_state),
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
     )
+    return c if engage_rate else replace(c, latch=None)

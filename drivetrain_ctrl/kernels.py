@@ -886,19 +886,27 @@ class CtrlData(NamedTuple):
 
 CI_OUT, CI_NC, CI_DISC, CI_NDELAY, CI_SA, CI_SB, CI_LF, CI_LM = 0, 1, 2, 3, 4, 5, 6, 7
 CI_ACT, CI_RL, CI_LKNB, CI_SAT, CI_ND = 8, 9, 10, 11, 12
+N_CI = 13
 CF_TS, CF_OFF, CF_LO, CF_HI, CF_RLR, CF_RLG, CF_LR, CF_LT, CF_AW, CF_AZ = range(10)
-CS_SIGN, CS_SAT, CS_LK, CS_RL, CS_LATCH, CS_TL, CS_VL, CS_HELD, CS_XD = range(9)
+CF_TON, CF_HOLD, CF_AWK = 10, 11, 12
+N_CF = 13
+CS_SIGN, CS_SAT, CS_LK, CS_RL, CS_LATCH, CS_TL, CS_VL, CS_HELD, CS_TR, CS_D0, CS_XD = range(11)
+#: latch states (``cs[CS_LATCH]``): armed, ramping to the target, holding the target, re-armed
+#: after a re-slip with the offset ``cs[CS_D0]`` (taken at ``cs[CS_TR]``) ramping out
+LATCH_ARMED, LATCH_RAMP, LATCH_HELD, LATCH_REARMED = 0.0, 1.0, 2.0, 3.0
 N_CL_GUARDS = 8
 
 
 def empty_controller() -> CtrlData:
     """An open loop: no controller states, no guards, no input overridden."""
-    ci = np.zeros(13, dtype=np.int64)
+    ci = np.zeros(N_CI, dtype=np.int64)
     ci[CI_OUT] = -1
     ci[CI_SA] = -1
     ci[CI_SB] = -1
     ci[CI_LF] = -1
     ci[CI_LKNB] = -1
+    cf = np.zeros(N_CF)
+    cf[CF_TON] = -np.inf
     return CtrlData(
         np.zeros(0, np.int64),
         np.zeros(0, np.int64),
@@ -908,7 +916,7 @@ def empty_controller() -> CtrlData:
         np.zeros(0),
         np.zeros(1),
         ci,
-        np.zeros(10),
+        cf,
         np.zeros(1),
         np.zeros(1),
         np.zeros(1),
@@ -934,9 +942,14 @@ def cl_error(Cd, y, sv):  # type: ignore[no-untyped-def]
 
 @jit
 def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
-    """(lookup argument, value before saturation, output before rate limiter/actuator)."""
+    """(lookup argument, value before saturation, output before rate limiter/actuator).
+
+    Before the start time ``cf[CF_TON]`` all three are the hold value ``cf[CF_HOLD]``."""
     ci = Cd.ci
     cf = Cd.cf
+    if t < cf[CF_TON]:
+        hold = cf[CF_HOLD]
+        return hold, hold, hold
     if ci[CI_DISC] != 0:
         v = cs[CS_HELD]
     else:
@@ -950,6 +963,10 @@ def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
     if ci[CI_LKNB] >= 0:
         r = int(cs[CS_LK])
         v = Cd.lk_s[r] * v + Cd.lk_o[r]
+    lat = cs[CS_LATCH]
+    if lat == LATCH_REARMED:
+        d0 = cs[CS_D0]
+        v += d0 - (1.0 if d0 > 0.0 else -1.0) * cf[CF_LR] * (t - cs[CS_TR])
     vpre = v
     if ci[CI_SAT] != 0:
         sr = int(cs[CS_SAT])
@@ -957,13 +974,41 @@ def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
             v = cf[CF_LO]
         elif sr == 2:
             v = cf[CF_HI]
-    lat = cs[CS_LATCH]
-    if lat == 1.0:
+    if lat == LATCH_RAMP:
         d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
         v = cs[CS_VL] + d * cf[CF_LR] * (t - cs[CS_TL])
-    elif lat == 2.0:
+    elif lat == LATCH_HELD:
         v = cf[CF_LT]
     return varg, vpre, v
+
+
+@jit_inline
+def cl_frozen(Cd, cs, t):  # type: ignore[no-untyped-def]
+    """True while the LTI states must not move: before the start and while latched."""
+    if t < Cd.cf[CF_TON]:
+        return True
+    lat = cs[CS_LATCH]
+    return lat == LATCH_RAMP or lat == LATCH_HELD
+
+
+@jit_inline
+def cl_backcalc(Cd, cs, vpre):  # type: ignore[no-untyped-def]
+    """Back-calculation anti-windup: the factor ``k`` such that adding ``k C^T`` to the LTI state
+    derivative moves the value before saturation towards the saturated one with time constant
+    ``1 / cf[CF_AWK]`` (0 when off or not saturated)."""
+    cf = Cd.cf
+    if cf[CF_AWK] <= 0.0 or Cd.ci[CI_SAT] == 0:
+        return 0.0
+    vs = min(max(vpre, cf[CF_LO]), cf[CF_HI])
+    if vs == vpre:
+        return 0.0
+    cc = 0.0
+    for i in range(Cd.C.shape[0]):
+        cc += Cd.C[i] * Cd.C[i]
+    if cc == 0.0:
+        return 0.0
+    sg = cs[CS_SIGN] if Cd.ci[CI_SA] >= 0 else 1.0
+    return sg * (vs - vpre) * cf[CF_AWK] / cc
 
 
 @jit_inline
@@ -989,12 +1034,17 @@ def cl_derivs(Cd, cs, y, nx, t, sv, dy):  # type: ignore[no-untyped-def]
     if ci[CI_OUT] < 0:
         return
     e = cl_error(Cd, y, sv)
-    for i in range(nc):
-        acc = Cd.B[i] * e
-        for j in range(nc):
-            acc += Cd.A[i, j] * y[nx + j]
-        dy[nx + i] = acc
     varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+    if cl_frozen(Cd, cs, t):
+        for i in range(nc):
+            dy[nx + i] = 0.0
+    else:
+        kb = cl_backcalc(Cd, cs, vpre)
+        for i in range(nc):
+            acc = Cd.B[i] * e + kb * Cd.C[i]
+            for j in range(nc):
+                acc += Cd.A[i, j] * y[nx + j]
+            dy[nx + i] = acc
     i_rl = nx + nc
     i_act = i_rl + ci[CI_RL]
     xin = v
@@ -1022,7 +1072,10 @@ def cl_guards(Cd, cs, y, nx, t, sv, g, off):  # type: ignore[no-untyped-def]
         g[off + k] = np.inf
     if ci[CI_OUT] < 0:
         return
-    if ci[CI_SA] >= 0:
+    lat = cs[CS_LATCH]
+    if ci[CI_SA] >= 0 and t >= cf[CF_TON] and lat != LATCH_RAMP and lat != LATCH_HELD:
+        # the sign matters only while the law acts (not before the start, not while latched:
+        # there the measured speeds may be equal by a stuck constraint, up to round-off)
         g[off] = cs[CS_SIGN] * (y[ci[CI_SA]] - y[ci[CI_SB]])
     e = cl_error(Cd, y, sv)
     varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
@@ -1053,9 +1106,11 @@ def cl_guards(Cd, cs, y, nx, t, sv, g, off):  # type: ignore[no-untyped-def]
             g[off + 5] = z - R
         else:
             g[off + 6] = -R - z
-    if cs[CS_LATCH] == 1.0:
+    if cs[CS_LATCH] == LATCH_RAMP:
         d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
         g[off + 7] = (cf[CF_LT] - v) * d
+    elif cs[CS_LATCH] == LATCH_REARMED:
+        g[off + 7] = abs(cs[CS_D0]) - cf[CF_LR] * (t - cs[CS_TR])
 
 
 @jit
@@ -1066,14 +1121,58 @@ def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
     if ci[CI_OUT] < 0:
         return
     if ci[CI_SA] >= 0:
-        d = y[ci[CI_SA]] - y[ci[CI_SB]]
-        if d > 0.0:
+        ya = y[ci[CI_SA]]
+        yb = y[ci[CI_SB]]
+        d = ya - yb
+        tol = 1e-8 * (1.0 + abs(ya) + abs(yb))
+        if d > tol:
             cs[CS_SIGN] = 1.0
-        elif d < 0.0:
+        elif d < -tol:
             cs[CS_SIGN] = -1.0
         elif cs[CS_SIGN] == 0.0:
-            cs[CS_SIGN] = 1.0
+            cs[CS_SIGN] = 1.0 if d >= 0.0 else -1.0
+        elif (
+            ci[CI_LF] >= 0
+            and (cs[CS_LATCH] == LATCH_RAMP or cs[CS_LATCH] == LATCH_HELD)
+            and (fm[ci[CI_LF]] == SLIP_POS or fm[ci[CI_LF]] == SLIP_NEG)
+        ):
+            # a re-slip of the latched element: the speeds part in its slip direction
+            cs[CS_SIGN] = 1.0 if fm[ci[CI_LF]] == SLIP_POS else -1.0
+        elif cs[CS_SIGN] * d <= 0.0 and not (ci[CI_LF] >= 0 and fm[ci[CI_LF]] == STUCK):
+            # at the switching instant (equal speeds up to the event location) and on or past
+            # the switching surface: the difference is crossing zero, the sign flips (a stuck
+            # latch element keeps it: the speeds stay equal)
+            cs[CS_SIGN] = -cs[CS_SIGN]
     e = cl_error(Cd, y, sv)
+    lf = ci[CI_LF]
+    if lf >= 0 and t >= cf[CF_TON]:
+        lat = cs[CS_LATCH]
+        locked = fm[lf] == ci[CI_LM]
+        if (lat == LATCH_ARMED or lat == LATCH_REARMED) and locked:
+            # latch: ramp from the current value (bumpless)
+            varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+            cs[CS_LATCH] = LATCH_RAMP
+            cs[CS_TL] = t
+            cs[CS_VL] = v
+        elif (lat == LATCH_RAMP or lat == LATCH_HELD) and not locked:
+            # re-slip: re-arm, continuing from the current value; the offset to the law's value
+            # ramps out at the latch rate
+            varg, vpre, v_now = cl_chain(Cd, cs, y, nx, t, e)
+            cs[CS_LATCH] = LATCH_ARMED
+            varg, vpre, v_law = cl_chain(Cd, cs, y, nx, t, e)
+            cs[CS_LATCH] = LATCH_REARMED
+            cs[CS_TR] = t
+            cs[CS_D0] = v_now - vpre
+            if cs[CS_D0] == 0.0:
+                cs[CS_LATCH] = LATCH_ARMED
+    if cs[CS_LATCH] == LATCH_RAMP:
+        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+        d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
+        if (cf[CF_LT] - v) * d <= 0.0:
+            cs[CS_LATCH] = LATCH_HELD
+    elif cs[CS_LATCH] == LATCH_REARMED:
+        if abs(cs[CS_D0]) - cf[CF_LR] * (t - cs[CS_TR]) <= 0.0:
+            cs[CS_LATCH] = LATCH_ARMED
     nb = ci[CI_LKNB]
     if nb >= 0:
         varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
@@ -1089,17 +1188,6 @@ def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
             cs[CS_SAT] = 2.0
         else:
             cs[CS_SAT] = 1.0
-    lf = ci[CI_LF]
-    if cs[CS_LATCH] == 0.0 and lf >= 0 and fm[lf] == ci[CI_LM]:
-        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
-        cs[CS_LATCH] = 1.0
-        cs[CS_TL] = t
-        cs[CS_VL] = v
-    if cs[CS_LATCH] == 1.0:
-        varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
-        d = 1.0 if cf[CF_LT] >= cs[CS_VL] else -1.0
-        if (cf[CF_LT] - v) * d <= 0.0:
-            cs[CS_LATCH] = 2.0
     if ci[CI_RL] != 0:
         varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
         z = cf[CF_RLG] * (v - y[nx + ci[CI_NC]])
@@ -1112,21 +1200,37 @@ def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
 
 
 @jit
-def cl_sample(Cd, cs, y, sv):  # type: ignore[no-untyped-def]
-    """Discrete controller: one sample (output with delay, then state update)."""
-    nd = Cd.ci[CI_ND]
+def cl_command(Cd, cs, y, nx, t, sv):  # type: ignore[no-untyped-def]
+    """The controller's command before the rate limiter and the actuator (x_r of law (6));
+    NaN in open loop. ``sv`` must hold the current signal values."""
+    if Cd.ci[CI_OUT] < 0:
+        return np.nan
     e = cl_error(Cd, y, sv)
+    varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
+    return v
+
+
+@jit
+def cl_sample(Cd, cs, y, sv, t):  # type: ignore[no-untyped-def]
+    """Discrete controller: one sample at ``t`` (output with delay, then state update; the state
+    holds while :func:`cl_frozen`, and the error is 0 before the start)."""
+    nd = Cd.ci[CI_ND]
+    e = cl_error(Cd, y, sv) if t >= Cd.cf[CF_TON] else 0.0
+    frozen = cl_frozen(Cd, cs, t)
+    varg, vpre, v = cl_chain(Cd, cs, y, 0, t, e)
+    kb = cl_backcalc(Cd, cs, vpre) * Cd.cf[CF_TS]
     w = Cd.Dm[0] * e
     for i in range(nd):
         w += Cd.C[i] * cs[CS_XD + i]
     xn = np.empty(nd)
     for i in range(nd):
-        acc = Cd.B[i] * e
+        acc = Cd.B[i] * e + kb * Cd.C[i]
         for j in range(nd):
             acc += Cd.A[i, j] * cs[CS_XD + j]
         xn[i] = acc
-    for i in range(nd):
-        cs[CS_XD + i] = xn[i]
+    if not frozen:
+        for i in range(nd):
+            cs[CS_XD + i] = xn[i]
     nde = Cd.ci[CI_NDELAY]
     base = CS_XD + nd
     # shift the delay line: buf[0] oldest ... buf[nde] newest
@@ -1503,7 +1607,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     cap = 1024
     T = np.empty(cap)
     Y = np.empty((cap, ny))
-    U = np.empty((cap, nu))
+    U = np.empty((cap, nu + 1))  # last column: the controller command (see cl_command)
     FM = np.empty((cap, nf), dtype=np.int64)
     RG = np.empty((cap, nt), dtype=np.int64)
     ev_t = np.empty(max_events + nf + nt)
@@ -1542,7 +1646,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     n_incons = 0
     if t_sample <= t:
         eval_inputs(S, ua, ub, t, t_ref, sv)
-        cl_sample(Cd, cs, y, sv)
+        cl_sample(Cd, cs, y, sv, t)
         t_sample = t + Ts
     P, Lam, nb = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
     n_incons += nb
@@ -1556,7 +1660,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
 
     T[0] = t
     Y[0] = y
-    U[0] = u
+    U[0, :nu] = u
+    U[0, nu] = cl_command(Cd, cs, y, nx, t, sv)
     FM[0] = fm
     RG[0] = reg
     n_rec = 1
@@ -1718,7 +1823,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             set_interval(S, t_ref, ua, ub)
             if t_sample <= t:
                 eval_inputs(S, ua, ub, t, t_ref, sv)
-                cl_sample(Cd, cs, y, sv)
+                cl_sample(Cd, cs, y, sv, t)
                 t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
             fm_old[:] = fm
             reg_old[:] = reg
@@ -1748,7 +1853,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             Y2 = np.empty((c2, ny))
             Y2[:n_rec] = Y[:n_rec]
             Y = Y2
-            U2 = np.empty((c2, nu))
+            U2 = np.empty((c2, nu + 1))
             U2[:n_rec] = U[:n_rec]
             U = U2
             F2 = np.empty((c2, nf), dtype=np.int64)
@@ -1759,6 +1864,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             RG = R2
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
         _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+        U[n_rec, nu] = cl_command(Cd, cs, y, nx, t, sv)
         n_rec += 1
 
     n_knee = 0

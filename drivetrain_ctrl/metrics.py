@@ -40,6 +40,7 @@ __all__ = [
     "METRIC_KEYS",
     "engagement_metrics",
     "state_accelerations",
+    "filtered_jerk",
     "jerk",
     "round_sig",
     "json_ready",
@@ -89,7 +90,30 @@ METRIC_KEYS: tuple[str, ...] = (
     "peak_shaft_torque_Nm",
     "n_backlash_impacts",
     "n_backlash_crossings",
+    "start_s",
+    "engagement_time_s",
+    "n_lock_events",
+    "engine_speed_max_rpm",
+    "engine_speed_min_rpm",
+    "tracking_rms_rpm",
+    "torque_match_rms_Nm",
+    "lurch_rad_s2",
+    "accel_p2p_after_lock_m_s2",
+    "jerk_max_m_s3",
+    "jerk_rms_m_s3",
+    "notes",
 )
+
+#: lock-up is the start of the first stuck phase of the clutch lasting at least this [s]
+LOCKUP_MIN_DURATION_S: float = 0.2
+#: engagement-window settings: tracking/torque-match from start + this [s] to lock-up
+TRACKING_DELAY_S: float = 0.3
+#: after lock-up [s]: window of the engine-speed, p2p-acceleration and jerk figures
+AFTER_LOCK_S: float = 1.0
+#: jerk: vehicle acceleration low-pass filtered at this [Hz] (2nd-order Butterworth, zero phase)
+JERK_FILTER_HZ: float = 10.0
+#: uniform resampling rate [Hz] of the signals behind the windowed figures
+RESAMPLE_HZ: float = 1000.0
 
 
 def round_sig(value: float | None, digits: int = SIGNIFICANT_DIGITS) -> float | None:
@@ -210,6 +234,39 @@ def _max_abs(a: F64) -> float | None:
     return float(np.max(np.abs(a))) if a.size else None
 
 
+def filtered_jerk(
+    t: F64,
+    accel: F64,
+    *,
+    cutoff_hz: float = JERK_FILTER_HZ,
+    fs_hz: float = RESAMPLE_HZ,
+) -> tuple[F64, F64, F64]:
+    """Jerk from an acceleration sampled at (non-uniform) times ``t`` [s].
+
+    The acceleration [m/s^2] is resampled uniformly at ``fs_hz`` [Hz] (linear interpolation),
+    low-pass filtered by a second-order Butterworth filter at ``cutoff_hz`` [Hz] run forwards and
+    backwards (zero phase, ``scipy.signal.sosfiltfilt``) and differentiated (central differences).
+    Returns ``(grid [s], filtered acceleration [m/s^2], jerk [m/s^3])``.
+    """
+    from scipy import signal
+
+    grid = np.arange(float(t[0]), float(t[-1]), 1.0 / fs_hz)
+    a = np.interp(grid, t, accel)
+    sos = signal.butter(2, cutoff_hz, btype="low", fs=fs_hz, output="sos")
+    pad = min(3 * (2 * sos.shape[0] + 1), a.shape[0] - 1)
+    af = signal.sosfiltfilt(sos, a, padlen=max(pad, 0)) if a.shape[0] > 7 else a
+    jk = np.gradient(af, 1.0 / fs_hz) if a.shape[0] > 1 else np.zeros_like(a)
+    return grid, np.asarray(af, dtype=float), np.asarray(jk, dtype=float)
+
+
+def _window(t: F64, t0: float, t1: float) -> NDArray[np.bool_]:
+    return np.asarray((t >= t0) & (t <= t1))
+
+
+def _rms(a: F64) -> float | None:
+    return float(np.sqrt(np.mean(a * a))) if a.size else None
+
+
 def engagement_metrics(
     res: SimulationResult,
     dt: DrivetrainLike | None = None,
@@ -217,6 +274,8 @@ def engagement_metrics(
     vehicle: str = "v_vehicle",
     engine: str = "omega_engine",
     clutch: str = "clutch",
+    start: float | None = None,
+    reference: Any = None,
 ) -> dict[str, Any]:
     """Figures of merit of run ``res`` of drivetrain ``dt``; a flat, JSON-ready dict.
 
@@ -227,10 +286,18 @@ def engagement_metrics(
     ``status``, ``t_end_s``, ``n_samples``, ``n_events``
         Simulation status, final time [s], number of samples and of events (mode changes).
     ``lockup_time_s``
-        Time [s] of the final clutch lock-up (``res.lockup_time(clutch)``); None if the clutch
-        does not end locked or never slipped.
+        Lock-up time [s]: the start of the first stuck phase of the clutch that lasts at least
+        :data:`LOCKUP_MIN_DURATION_S` = 0.2 s (``res.lockup_time(clutch)``); None if there is none
+        (and ``notes`` says so).
+    ``start_s``, ``engagement_time_s``
+        The start command [s] (argument ``start``: the controller's start time, or the start of the
+        pedal release; default the start of the run) and engagement time = lock-up - start [s].
+    ``n_lock_events``
+        Number of times the clutch entered its stuck mode (re-slips counted: 1 for a clean
+        engagement).
     ``clutch_energy_J``
-        Energy [J] dissipated by the clutch friction, ``integral of T_clutch * slip dt``.
+        Energy [J] dissipated by the clutch friction, ``integral of tau_13 * slip dt`` from the
+        start of the run to lock-up (to the end of the run without lock-up).
     ``work_in_J``, ``energy_residual_rel``
         Work supplied by the sources [J]; relative energy-balance residual [-]
         (``res.energy_residual_rel``). None if energies were not integrated.
@@ -263,6 +330,30 @@ def engagement_metrics(
     ``n_backlash_impacts``, ``n_backlash_crossings``
         Gap -> contact transitions and complete traversals of the gap (contact side changes).
 
+    Engagement-window figures (the window ``[start, lock-up + 1 s]``; without lock-up, to the end
+    of the run). Signals are resampled uniformly at :data:`RESAMPLE_HZ`:
+
+    ``engine_speed_max_rpm``, ``engine_speed_min_rpm``
+        Highest (flare) and lowest (stall margin) engine speed [rpm] over the window.
+    ``tracking_rms_rpm``
+        RMS of ``omega_r - omega_1`` [rpm] over ``[start + 0.3 s, lock-up]``; needs
+        ``reference`` (the controller's omega_r signal [rad/s]), else None.
+    ``torque_match_rms_Nm``
+        RMS of ``tau_13 - C_1`` [N m] (clutch torque minus engine torque: the paper's claim
+        tau_13 ~ C_1 while slipping) over ``[start + 0.3 s, lock-up]``.
+    ``lurch_rad_s2``
+        Jump of the acceleration of the clutch's driven body at lock-up [rad/s^2], after minus
+        before: the primary shaft (omega_3) in the reduced model; in the full model the clutch
+        disc (omega_2), the body the clutch locks to (the primary shaft sits behind the damper
+        spring there and its acceleration has no jump).
+    ``accel_p2p_after_lock_m_s2``
+        Peak-to-peak vehicle acceleration [m/s^2] over ``[lock-up, lock-up + 1 s]``.
+    ``jerk_max_m_s3``, ``jerk_rms_m_s3``
+        Largest |jerk| and RMS jerk [m/s^3] over the window, from the vehicle acceleration
+        low-pass filtered at 10 Hz (second-order Butterworth, zero phase; :func:`filtered_jerk`).
+    ``notes``
+        Plain statements about the run (no lock-up within the horizon, engine stall, ...).
+
     ``dt`` may be None for a model not built by :class:`~drivetrain_ctrl.drivetrain.Drivetrain`
     (e.g. a :func:`~drivetrain_ctrl.chain.two_body_clutch` test chain). ``vehicle`` and
     ``engine`` name the speed states used for the vehicle and engine figures (for a rotational
@@ -284,11 +375,15 @@ def engagement_metrics(
     fc = _friction_coupling(model, clutch)
     t_lock: float | None = None
     if fc is not None:
-        t_lock = res.lockup_time(clutch)
+        t_lock = res.lockup_time(clutch, min_duration=LOCKUP_MIN_DURATION_S)
         out["lockup_time_s"] = t_lock
+        out["n_lock_events"] = len(res.stuck_phases(clutch))
         if res.dissipated is not None:
             j = model.power_names().index(clutch)
-            out["clutch_energy_J"] = float(res.dissipated[-1, j])
+            k_end = -1
+            if t_lock is not None:
+                k_end = int(np.searchsorted(res.t, t_lock, side="right")) - 1
+            out["clutch_energy_J"] = float(res.dissipated[k_end, j])
     if res.work_in is not None and res.dissipated is not None:
         out["work_in_J"] = float(res.work_in[-1])
         out["energy_residual_rel"] = res.energy_residual_rel
@@ -345,8 +440,78 @@ def engagement_metrics(
         if c_shaft is not None:
             out["peak_shaft_torque_Nm"] = float(np.max(np.abs(T[:, c_shaft])))
 
+    _engagement_window(res, out, model, fc, t_lock, i_lock, vehicle, engine, start, reference)
     impacts, crossings = _backlash_counts(res)
     out["n_backlash_impacts"] = impacts
     out["n_backlash_crossings"] = crossings
     result: dict[str, Any] = json_ready(out)
     return result
+
+
+def _engagement_window(
+    res: SimulationResult,
+    out: dict[str, Any],
+    model: Model,
+    fc: tuple[int, int] | None,
+    t_lock: float | None,
+    i_lock: int | None,
+    vehicle: str,
+    engine: str,
+    start: float | None,
+    reference: Any,
+) -> None:
+    """The engagement-window figures of :func:`engagement_metrics` into ``out``."""
+    names = model.state_names
+    t = res.t
+    t_start = float(t[0]) if start is None else float(start)
+    out["start_s"] = t_start
+    notes: list[str] = []
+    t_final = float(t[-1])
+    if fc is not None and t_lock is None:
+        notes.append(
+            f"the clutch did not lock up (no stuck phase of at least {LOCKUP_MIN_DURATION_S} s) "
+            f"within the horizon of {t_final:g} s: lockup_time_s is null"
+        )
+    if t_lock is not None:
+        out["engagement_time_s"] = t_lock - t_start
+    t_win_end = min(t_final, t_lock + AFTER_LOCK_S) if t_lock is not None else t_final
+    t_track_end = t_lock if t_lock is not None else t_final
+    grid = np.arange(t_start, t_final, 1.0 / RESAMPLE_HZ)
+    if grid.size == 0:
+        grid = np.array([t_start])
+    if engine in names:
+        w = np.interp(grid, t, res.state(engine))
+        win = _window(grid, t_start, t_win_end)
+        if np.any(win):
+            out["engine_speed_max_rpm"] = float(rad_s_to_rpm(float(np.max(w[win]))))
+            out["engine_speed_min_rpm"] = float(rad_s_to_rpm(float(np.min(w[win]))))
+        trk = _window(grid, t_start + TRACKING_DELAY_S, t_track_end)
+        if reference is not None and np.any(trk):
+            err = np.asarray(reference(grid[trk]), dtype=float) - w[trk]
+            out["tracking_rms_rpm"] = _rms(np.asarray(rad_s_to_rpm(err), dtype=float))
+        if fc is not None and model.chain.sources and np.any(trk):
+            tau = res.coupling_torques()[:, fc[1]]
+            c1 = res.source_torques()[model.chain.sources[0].name]
+            d = np.interp(grid[trk], t, tau) - np.interp(grid[trk], t, c1)
+            out["torque_match_rms_Nm"] = _rms(d)
+    need_acc = (fc is not None and i_lock is not None) or vehicle in names
+    right, left = state_accelerations(res) if need_acc else (None, None)
+    if fc is not None and i_lock is not None and right is not None and left is not None:
+        jb = fc[1] + 1  # the clutch coupling's driven body
+        out["lurch_rad_s2"] = float(right[i_lock, jb] - left[i_lock, jb])
+    if right is not None and vehicle in names and model.state_units[names.index(vehicle)] == "m/s":
+        acc = right[:, names.index(vehicle)]
+        if t.shape[0] > 1:
+            g, af, jk = filtered_jerk(t, acc)
+            win = _window(g, t_start, t_win_end)
+            if np.any(win):
+                out["jerk_max_m_s3"] = float(np.max(np.abs(jk[win])))
+                out["jerk_rms_m_s3"] = _rms(jk[win])
+        if t_lock is not None:
+            after = _window(grid, t_lock, t_win_end)
+            if np.any(after):
+                a = np.interp(grid[after], t, acc)
+                out["accel_p2p_after_lock_m_s2"] = float(np.max(a) - np.min(a))
+    if out.get("engine_stalled"):
+        notes.append("the engine stalled (its friction entered standstill)")
+    out["notes"] = notes

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .model import Model
     from .simulate import SimulationResult
 
-__all__ = ["plot_simulation", "plot_energy", "DPI"]
+__all__ = ["plot_simulation", "plot_energy", "plot_engagement", "DPI"]
 
 F64 = NDArray[np.float64]
 
@@ -313,5 +313,63 @@ def plot_energy(res: SimulationResult, path: str | Path | None = None) -> Figure
     ax_r.set_title(
         f"residual (relative at the end: {res.energy_residual_rel:.2e})", fontsize=9, loc="left"
     )
+    _save(fig, path)
+    return fig
+
+
+def plot_engagement(
+    runs: list[tuple[str, SimulationResult]],
+    *,
+    reference: Any = None,
+    lockups: list[float | None] | None = None,
+    path: str | Path | None = None,
+    title: str | None = None,
+) -> Figure:
+    """A clutch start in the layout of the paper's Fig. 14, one column per run.
+
+    Rows: engine speed omega_1, primary-shaft speed omega_3 and the reference omega_r [rpm];
+    controller command x_r and actuator position x_c [mm]; clutch torque tau_13 and engine torque
+    C_1 [N m]; vehicle speed [km/h]. ``runs`` are ``(label, result)`` pairs of closed-loop runs;
+    ``reference`` is omega_r(t) [rad/s] (a :class:`~drivetrain_ctrl.signals.Signal`);
+    ``lockups`` the lock-up time [s] of each run (a dashed line). Saved to ``path`` if given.
+    """
+    from matplotlib.figure import Figure
+
+    ncol = len(runs)
+    fig = Figure(figsize=(5.2 * ncol, 9.0), layout="constrained")
+    axs = fig.subplots(4, ncol, sharex=True, squeeze=False)
+    for j, (label, res) in enumerate(runs):
+        m = res.model
+        t = res.t
+        ax = axs[:, j]
+        ax[0].plot(t, res.state("omega_engine") / RPM_TO_RAD_S, label=r"$\omega_1$ engine")
+        ax[0].plot(t, res.state("omega_primary") / RPM_TO_RAD_S, label=r"$\omega_3$ primary")
+        if reference is not None:
+            ax[0].plot(t, np.asarray(reference(t)) / RPM_TO_RAD_S, "k--", label=r"$\omega_r$")
+        ax[0].set_ylabel("speed [rpm]")
+        ax[0].set_title(label)
+        cmd = res.extras.get("controller_command")
+        if cmd is not None:
+            ax[1].plot(t, 1e3 * np.asarray(cmd), label=r"$x_r$ command")
+        ax[1].plot(t, 1e3 * res.u[:, m.input_names.index("pedal")], label=r"$x_c$ actuator")
+        ax[1].set_ylabel("position [mm]")
+        T = res.coupling_torques()
+        c_clutch = [c.name for c in m.chain.couplings].index("clutch")
+        ax[2].plot(t, T[:, c_clutch], label=r"$\tau_{13}$ clutch")
+        src = res.source_torques()
+        if src:
+            ax[2].plot(t, next(iter(src.values())), label=r"$C_1$ engine")
+        ax[2].set_ylabel("torque [N m]")
+        ax[3].plot(t, 3.6 * res.state("v_vehicle"), label="vehicle")
+        ax[3].set_ylabel("speed [km/h]")
+        ax[3].set_xlabel("t [s]")
+        if lockups is not None:
+            _mark_lockup(list(ax), lockups[j])
+        for a in ax:
+            a.grid(True, alpha=0.3)
+            if j == 0:
+                a.legend(loc="best", fontsize=8)
+    if title:
+        fig.suptitle(title)
     _save(fig, path)
     return fig

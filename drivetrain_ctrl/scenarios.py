@@ -45,10 +45,7 @@ from .params import DrivetrainParams
 from .signals import Signal, constant, ramp, step
 from .units import kmh_to_m_s, rpm_to_rad_s
 
-__all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError", "CONTROLLERS"]
-
-#: closed-loop controllers a scenario can name
-CONTROLLERS: tuple[str, ...] = ("law6",)
+__all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError", "idle_throttle"]
 
 
 class ScenarioError(ValueError):
@@ -71,8 +68,8 @@ class Scenario:
     twist_torque0: float
     inputs: tuple[tuple[str, Signal], ...]
     clutch_locked0: bool = False
-    controller: str | None = None
     reference: Signal | None = None
+    control_start: float | None = None
     pedal0: float = 0.11
 
     def __post_init__(self) -> None:
@@ -94,48 +91,91 @@ class Scenario:
             raise ScenarioError(
                 f"{self.name}: unknown input(s) {sorted(unknown)}; inputs: {INPUTS}"
             )
-        needed = set(INPUTS) - ({"pedal"} if self.controller else set())
+        needed = set(INPUTS) - ({"pedal"} if self.needs_controller else set())
         missing = needed - set(names)
         if missing:
             raise ScenarioError(f"{self.name}: missing input(s) {sorted(missing)}")
-        if self.controller is not None:
-            if self.controller not in CONTROLLERS:
+        if self.needs_controller and "pedal" in names:
+            raise ScenarioError(f"{self.name}: inputs.pedal is driven by the controller; remove it")
+        if self.control_start is not None:
+            cs = self.control_start
+            if not (math.isfinite(cs) and 0.0 <= cs < self.t_end):
                 raise ScenarioError(
-                    f"{self.name}: controller = {self.controller!r}: known controllers {CONTROLLERS}"
-                )
-            if "pedal" in names:
-                raise ScenarioError(
-                    f"{self.name}: inputs.pedal is driven by the controller; remove it"
+                    f"{self.name}: controller.start_s = {cs!r}: must be in [0, t_end = "
+                    f"{self.t_end}) s"
                 )
             if self.reference is None:
-                raise ScenarioError(
-                    f"{self.name}: controller {self.controller!r} needs a reference"
-                )
+                raise ScenarioError(f"{self.name}: controller.start_s needs a reference_rpm")
+        if not (math.isfinite(self.pedal0) and 0.0 <= self.pedal0 <= 0.5):
+            raise ScenarioError(f"{self.name}: pedal0 = {self.pedal0!r} [m]: out of range [0, 0.5]")
+
+    @property
+    def start_time(self) -> float:
+        """The start command [s]: the controller's start time; for an open-loop scenario the
+        first breakpoint of the pedal signal (start of the pedal release); else 0."""
+        if self.control_start is not None:
+            return float(self.control_start)
+        sig = dict(self.inputs).get("pedal")
+        if sig is not None and sig.breakpoints:
+            return float(sig.breakpoints[0])
+        return 0.0
+
+    @property
+    def needs_controller(self) -> bool:
+        """True if the pedal is driven by a closed-loop controller (the scenario gives the
+        engine-speed reference, not the pedal)."""
+        return self.reference is not None
 
     def input_signals(self) -> dict[str, Signal]:
         return dict(self.inputs)
 
-    def make_controller(self, dt: Drivetrain) -> Any:
-        """The closed-loop controller of this scenario for drivetrain ``dt`` (None: open loop)."""
-        if self.controller is None:
+    def make_controller(self, dt: Drivetrain, controller: Any) -> Any:
+        """The closed-loop :class:`~drivetrain_ctrl.closedloop.Controller` of this scenario on
+        drivetrain ``dt`` from ``controller``: a built-in name (``paper``, ``pi``, ...), a
+        controller TOML file, a :class:`~drivetrain_ctrl.controllers.ControllerSpec`, or a ready
+        ``Controller`` (returned as is). ``None`` gives None (open loop)."""
+        if controller is None:
             return None
-        from .closedloop import law6_controller
+        from .closedloop import Controller
+        from .controllers import load_controller
 
-        assert self.reference is not None
-        driven = "omega_disc" if dt.kind == "full" else "omega_primary"
-        return law6_controller(dt.params, reference=self.reference, driven_state=driven)
+        if isinstance(controller, Controller):
+            return controller
+        if self.reference is None:
+            raise ScenarioError(
+                f"scenario {self.name!r} is open loop (it gives the pedal signal); it takes no "
+                "controller"
+            )
+        spec = load_controller(controller)
+        return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
 
-    def run(self, dt: Drivetrain, *, options: Any = None, t_end: float | None = None) -> Any:
-        """Simulate this scenario on ``dt`` (open or closed loop); returns a SimulationResult."""
+    def run(
+        self,
+        dt: Drivetrain,
+        *,
+        controller: Any = None,
+        options: Any = None,
+        t_end: float | None = None,
+    ) -> Any:
+        """Simulate this scenario on ``dt``; returns a SimulationResult.
+
+        ``controller``: see :meth:`make_controller`; a scenario that gives an engine-speed
+        reference instead of the pedal (``paper-start``) needs one."""
         from .simulate import simulate
 
+        if self.needs_controller and controller is None:
+            raise ScenarioError(
+                f"scenario {self.name!r} needs a controller (it gives the engine-speed reference, "
+                "not the pedal): pass controller='paper', 'pi', 'paper-10ms', 'pi-10ms' or a "
+                "controller TOML file (CLI: --controller)"
+            )
         return simulate(
             dt.model,
             self.initial_state(dt),
             self.input_signals(),
             t_end=self.t_end if t_end is None else t_end,
             options=options,
-            controller=self.make_controller(dt),
+            controller=self.make_controller(dt, controller),
             controller_initial=self.pedal0,
         )
 
@@ -174,19 +214,23 @@ class Scenario:
             **(
                 {
                     "controller": {
-                        "law": self.controller,
                         "reference_rpm": (self.reference * (30.0 / math.pi)).to_dict(),
                         "pedal0": self.pedal0,
+                        **(
+                            {"start_s": self.control_start}
+                            if self.control_start is not None
+                            else {}
+                        ),
                     }
                 }
-                if self.controller is not None and self.reference is not None
+                if self.reference is not None
                 else {}
             ),
         }
 
 
 _TOP = {"name", "description", "gear", "slope_percent", "t_end", "initial", "inputs", "controller"}
-_CONTROLLER = {"law", "reference_rpm", "pedal0"}
+_CONTROLLER = {"reference_rpm", "pedal0", "start_s"}
 _INITIAL = {"engine_speed_rpm", "vehicle_speed_kmh", "throttle", "twist_torque", "clutch_locked"}
 
 
@@ -225,14 +269,13 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
     if not isinstance(locked, bool):
         raise ScenarioError(f"initial.clutch_locked = {locked!r}: must be true or false")
     ctl = d.get("controller")
-    law: str | None = None
     reference: Signal | None = None
+    start: float | None = None
     pedal0 = 0.11
     if ctl is not None:
         if not isinstance(ctl, dict):
             raise ScenarioError("controller: must be a table")
         _reject_unknown("controller.", set(ctl), _CONTROLLER)
-        law = str(ctl.get("law", ""))
         if "reference_rpm" not in ctl:
             raise ScenarioError("controller.reference_rpm: missing")
         try:
@@ -243,9 +286,11 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
             raise ScenarioError(str(exc)) from exc
         if "pedal0" in ctl:
             pedal0 = _num("controller.", ctl, "pedal0")
+        if "start_s" in ctl:
+            start = _num("controller.", ctl, "start_s")
     sigs = []
     for n in INPUTS:
-        if n == "pedal" and law is not None:
+        if n == "pedal" and reference is not None:
             continue
         if n not in inputs:
             raise ScenarioError(f"inputs.{n}: missing")
@@ -267,14 +312,86 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         throttle0=_num("initial.", ini, "throttle"),
         twist_torque0=float(ini.get("twist_torque", 0.0)),
         inputs=tuple(sigs),
-        controller=law,
         reference=reference,
+        control_start=start,
         pedal0=pedal0,
     )
 
 
-def builtin_scenarios() -> dict[str, Scenario]:
-    """The built-in scenarios: ``engage-ramp`` and ``tip-in``."""
+def idle_throttle(params: DrivetrainParams, omega: float) -> float:
+    """Throttle [-] that holds the free engine (clutch open) at ``omega`` [rad/s].
+
+    Engine torque = engine friction: ``K theta = b1 omega + c1`` (linear torque model, eq. (1)) or
+    ``theta C_max(omega) = b1 omega + c1`` (map model)."""
+    e = params.engine
+    loss = e.b1 * omega + e.c1
+    if e.torque_model == "map" and e.full_load_curve is not None:
+        gain = float(np.interp(omega, e.full_load_curve.x, e.full_load_curve.y))
+    else:
+        gain = e.K
+    th = loss / gain
+    if not 0.0 <= th <= 1.0:
+        raise ScenarioError(f"idle speed {omega!r} rad/s needs throttle {th:.3g}, outside [0, 1]")
+    return float(th)
+
+
+#: the paper-start scenario's numbers (issue: Section IV of the paper, Fig. 14)
+PAPER_START = {
+    "idle_rpm": 900.0,
+    "start_s": 0.5,
+    "throttle_start": 0.9,
+    "reference_rpm": 1600.0,
+    "ramp_start_s": 1.5,
+    "ramp_time_s": 0.1,
+    "throttle_end": 0.6,
+    "t_end_s": 4.0,
+    "pedal_open_m": 0.11,
+}
+
+
+def paper_start(params: DrivetrainParams | None = None) -> Scenario:
+    """The paper's start (Section IV, Fig. 14): first gear, flat road, vehicle at rest, engine
+    idling at 900 rpm with the throttle that holds it there (:func:`idle_throttle` on
+    ``params``, default parameter set if None) and the clutch open until 0.5 s; at 0.5 s the
+    throttle steps to 0.9, the engine-speed reference omega_r steps to 1600 rpm and the controller
+    starts; from 1.5 s the throttle ramps down to 0.6 within 0.1 s; horizon 4 s."""
+    from .params import default_params
+
+    n = PAPER_START
+    p = default_params() if params is None else params
+    w_idle = float(rpm_to_rad_s(n["idle_rpm"]))
+    th0 = idle_throttle(p, w_idle)
+    t0, t1 = n["start_s"], n["ramp_start_s"]
+    throttle = (
+        constant(th0)
+        + step(t0, n["throttle_start"] - th0)
+        + ramp(t1, t1 + n["ramp_time_s"], 0.0, n["throttle_end"] - n["throttle_start"])
+    )
+    return Scenario(
+        name="paper-start",
+        description=(
+            "The paper's start (Section IV, Fig. 14): first gear, flat road, vehicle at rest, "
+            f"engine idling at 900 rpm (throttle {th0:.4f}) with the clutch open; at 0.5 s the "
+            "throttle steps to 0.9, the reference omega_r to 1600 rpm and the controller starts; "
+            "from 1.5 s the throttle ramps down to 0.6 within 0.1 s. Needs a controller."
+        ),
+        gear=1,
+        slope=0.0,
+        t_end=n["t_end_s"],
+        omega_engine0=w_idle,
+        v_vehicle0=0.0,
+        throttle0=th0,
+        twist_torque0=0.0,
+        inputs=(("throttle", throttle), ("brake", constant(0.0))),
+        reference=constant(w_idle) + step(t0, float(rpm_to_rad_s(n["reference_rpm"])) - w_idle),
+        control_start=t0,
+        pedal0=n["pedal_open_m"],
+    )
+
+
+def builtin_scenarios(params: DrivetrainParams | None = None) -> dict[str, Scenario]:
+    """The built-in scenarios: ``engage-ramp``, ``tip-in`` and ``paper-start`` (its idle throttle
+    from ``params``; the default parameter set if None)."""
     engage = Scenario(
         name="engage-ramp",
         description=(
@@ -316,35 +433,14 @@ def builtin_scenarios() -> dict[str, Scenario]:
             ("brake", constant(0.0)),
         ),
     )
-    paper = Scenario(
-        name="paper-start",
-        description=(
-            "The paper's start (Section IV, Fig. 14) under control law (6): vehicle at rest, "
-            "engine idling at 1000 rpm, clutch open; at 0.5 s the engine-speed reference rises to "
-            "1600 rpm and the throttle opens; at 1.5 s the driver reduces the engine torque; the "
-            "law keeps the engine on the reference until lock-up, then the clutch is closed."
-        ),
-        gear=1,
-        slope=0.0,
-        t_end=3.5,
-        omega_engine0=float(rpm_to_rad_s(1000.0)),
-        v_vehicle0=0.0,
-        throttle0=0.2,
-        twist_torque0=0.0,
-        inputs=(
-            ("throttle", constant(0.2) + step(0.5, 0.5) + step(1.5, -0.2)),
-            ("brake", constant(0.0)),
-        ),
-        controller="law6",
-        reference=constant(float(rpm_to_rad_s(1000.0))) + step(0.5, float(rpm_to_rad_s(600.0))),
-        pedal0=0.11,
-    )
+    paper = paper_start(params)
     return {engage.name: engage, tip.name: tip, paper.name: paper}
 
 
-def load_scenario(source: str | Path) -> Scenario:
-    """A built-in scenario by name, or a scenario TOML file."""
-    b = builtin_scenarios()
+def load_scenario(source: str | Path, *, params: DrivetrainParams | None = None) -> Scenario:
+    """A built-in scenario by name (built for ``params``, default parameter set if None), or a
+    scenario TOML file."""
+    b = builtin_scenarios(params)
     if isinstance(source, str) and source in b:
         return b[source]
     p = Path(source)

@@ -193,25 +193,42 @@ class SimulationResult:
         scale = max(abs(float(self.work_in[-1])), float(np.max(np.abs(E))), 1e-300)
         return float(abs(res) / scale)
 
-    def lockup_time(self, element: str = "clutch", *, after: float = 0.0) -> float | None:
-        """Time [s] of the last slip -> stuck transition of ``element`` after which it stays
-        stuck to the end of the run (None if it never locks for good)."""
+    def lockup_time(
+        self, element: str = "clutch", *, min_duration: float = 0.2, after: float = 0.0
+    ) -> float | None:
+        """Lock-up time [s]: the start of the first stuck phase of friction ``element``, entered
+        from slip at or after ``after`` [s], that lasts at least ``min_duration`` [s] (a phase
+        still running at the end of the run counts if it has lasted that long). None if there is
+        none (never locks, or locks only briefly, or is stuck from the start and stays so)."""
+        phases = self.stuck_phases(element)
+        for t0, t1 in phases:
+            if t0 >= after and t1 - t0 >= min_duration:
+                return t0
+        return None
+
+    def stuck_phases(self, element: str = "clutch") -> list[tuple[float, float]]:
+        """``(start, end)`` [s] of every stuck phase of friction ``element`` entered from another
+        mode (the end of a phase still running is the end of the run)."""
         stuck_name = None
         for fi in self.model.frictions:
             if fi.name == element:
                 stuck_name = fi.mode_names[0]
         if stuck_name is None:
             raise KeyError(f"no friction element {element!r}")
-        series = self.mode_series(element)
-        if series[-1] != stuck_name:
-            return None
-        t_lock = None
-        for ev in self.events:
-            if ev.element == element and ev.to_mode == stuck_name and ev.t >= after:
-                t_lock = ev.t
-        if t_lock is None and series[0] == stuck_name:
-            return None
-        return t_lock
+        stuck = np.array([m == stuck_name for m in self.mode_series(element)])
+        out: list[tuple[float, float]] = []
+        i = 1
+        n = stuck.shape[0]
+        while i < n:
+            if stuck[i] and not stuck[i - 1]:
+                j = i
+                while j < n and stuck[j]:
+                    j += 1
+                t_end = float(self.t[j]) if j < n else float(self.t[-1])
+                out.append((float(self.t[i]), t_end))
+                i = j
+            i += 1
+        return out
 
     def to_dataframe(self) -> pd.DataFrame:
         """Samples as a pandas DataFrame; column names carry units, e.g. ``omega_engine [rad/s]``."""
@@ -349,13 +366,16 @@ def simulate(
         inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
     if controller is not None:
-        Cd, cs, refs = controller.compile(model)
+        Cd, cs, refs = controller.compile(model, hold=float(controller_initial))
         y_cl0 = controller.initial_states(model, x0, float(controller_initial))
         sigs = sigs + list(refs)
     else:
         Cd, cs, y_cl0 = K.empty_controller(), np.zeros(K.CS_XD), np.zeros(0)
     S = tuple(pack_signals(sigs))
-    bps = sorted({b for s in sigs for b in s.breakpoints if t0 < b < t_end})
+    bp_set = {b for s in sigs for b in s.breakpoints}
+    if controller is not None and controller.start_time is not None:
+        bp_set.add(float(controller.start_time))
+    bps = sorted(b for b in bp_set if t0 < b < t_end)
     bps_arr = np.array(bps, dtype=float)
     D = model.data
     if opts.smoothing is not None:
@@ -389,6 +409,7 @@ def simulate(
     (T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el) = out[:11]
     (t_last, nsteps, nrej, nfev, nknee, nincons) = out[11:]
     nx = model.nx
+    nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
     events = []
     for te, el, a, b in zip(evt, evel, evf, evto, strict=True):
@@ -400,7 +421,7 @@ def simulate(
         model=model,
         t=T,
         x=Y[:, :nx],
-        u=U,
+        u=np.ascontiguousarray(U[:, :nu]),
         fm=FM,
         reg=RG,
         events=tuple(events),
@@ -416,7 +437,9 @@ def simulate(
             "inconsistent_decisions": int(nincons),
             "wall_time_s": wall,
         },
-        extras={"controller_states": Y[:, nx:nxs]} if controller is not None else {},
+        extras={"controller_states": Y[:, nx:nxs], "controller_command": U[:, nu]}
+        if controller is not None
+        else {},
     )
     if stat == "zeno" and raise_on_zeno:
         name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"

@@ -17,11 +17,13 @@ def _load(name: str):  # type: ignore[no-untyped-def]
     return mod
 
 
-def test_paper_start_quick(tmp_path: Path) -> None:
-    res = _load("paper_start").main(quick=True, out=tmp_path)
-    m = res["reduced"]
-    # law (6) keeps the engine alive and the clutch locks within the run
-    assert m["lockup_time_s"] is not None and 1.0 < m["lockup_time_s"] < 3.5
-    assert m["min_engine_speed_rpm"] > 400.0
-    assert (tmp_path / "reduced.png").stat().st_size > 10_000
-    assert json.loads((tmp_path / "metrics.json").read_text())["reduced"] == m
+def test_paper_fig14_quick(tmp_path: Path) -> None:
+    res = _load("paper_fig14").main(quick=True, out=tmp_path)
+    runs = res["paper"]["runs"]
+    for kind in ("reduced", "full"):
+        m = runs[kind]
+        assert m["lockup_time_s"] is not None and 1.0 < m["lockup_time_s"] < 3.5
+    assert all(res["paper"]["checks"].values()), res["paper"]["checks"]
+    assert (tmp_path / "fig14_paper.png").stat().st_size > 20_000
+    data = json.loads((tmp_path / "metrics.json").read_text())
+    assert data["paper"]["runs"]["full"]["lockup_time_s"] == runs["full"]["lockup_time_s"]

@@ -151,7 +151,7 @@ def test_pi_variant_of_law6_runs_on_the_switching_plant(discrete: bool) -> None:
     w = res.state("omega_engine")
     assert w.min() > 20.0  # no stall
     # the integral state is really used: PI and law (6) differ
-    law6 = sc.run(dt)
+    law6 = sc.run(dt, controller="paper")
     assert abs(np.interp(1.2, res.t, w) - np.interp(1.2, law6.t, law6.state("omega_engine"))) > 1.0
 
 

@@ -1,0 +1,484 @@
+"""Loop analysis: stability margins, root loci on a parameter grid, Nyquist data.
+
+Results are frozen dataclasses with ``to_dict()`` (JSON-ready, floats rounded by
+:func:`drivetrain_ctrl.metrics.json_ready`) and ``plot()`` (matplotlib imported inside the method).
+Undefined figures are None with a reason in ``reasons``.
+
+Margins of a loop ``L`` (negative feedback, ``S = 1/(1+L)``, ``T = L/(1+L)``):
+
+* classical gain / phase margins and crossovers (``control.stability_margins``);
+* delay margin ``PM [rad] / omega_gc`` [s];
+* symmetric (balanced, skew 0) disk margin (Blight, Dailey, Gangsaas 1994; Seiler, Packard,
+  Gahinet, "An introduction to disk margins", IEEE CSM 2020):
+  ``alpha = 1 / max_w |S(jw) - T(jw)| / 2``, i.e. ``1/||S - 1/2||_inf``; the loop tolerates
+  simultaneous gain and phase variations in the disk with gain range
+  ``[(1 - alpha/2)/(1 + alpha/2), (1 + alpha/2)/(1 - alpha/2)]`` and phase ``+-2 atan(alpha/2)``
+  (computed with ``control.disk_margins``, checked against this formula in the tests);
+* ``ms = ||S||_inf``, ``mt = ||T||_inf``, bandwidth: first frequency where ``|T|`` falls below
+  ``|T(0)|/sqrt(2)``; closed-loop poles with damping and natural frequency (discrete poles mapped
+  by ``s = ln(z)/dt``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import control
+import numpy as np
+from numpy.typing import NDArray
+
+from .closedloop import Actuator, Controller
+from .linear import (
+    OperatingPoint,
+    clutch_loop,
+    linearise,
+    rebuild_operating_point,
+    slip_mode_poles,
+)
+from .metrics import json_ready
+
+__all__ = [
+    "Pole",
+    "LoopMargins",
+    "loop_margins",
+    "clutch_loop_margins",
+    "RootLocusPoint",
+    "RootLocus",
+    "root_locus",
+    "NyquistData",
+    "nyquist_data",
+    "poles_of",
+]
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class Pole:
+    """A pole [1/s]: real, imag parts, natural frequency ``|p|/2pi`` [Hz] and damping ratio
+    ``-Re p/|p|`` (1 for a stable real pole, negative when unstable)."""
+
+    real: float
+    imag: float
+    frequency_hz: float
+    damping: float
+
+
+def poles_of(p: Sequence[complex] | NDArray[Any], dt: float | None = None) -> tuple[Pole, ...]:
+    """:class:`Pole` of each value (discrete poles ``z`` mapped by ``s = ln(z)/dt``), sorted by
+    frequency then imaginary part."""
+    out = []
+    for z in np.asarray(p, dtype=complex):
+        s = complex(np.log(z) / dt) if dt else complex(z)
+        a = abs(s)
+        out.append(Pole(s.real, s.imag, a / (2 * math.pi), -s.real / a if a > 0 else 1.0))
+    return tuple(sorted(out, key=lambda q: (q.frequency_hz, q.imag)))
+
+
+def _dt_of(L: Any) -> float | None:
+    dt = L.dt
+    return None if (dt is None or dt == 0 or dt is True) else float(dt)
+
+
+def _grid(L: Any, omega: Sequence[float] | None) -> F64:
+    if omega is not None:
+        w = np.asarray(omega, dtype=float)
+        if w.ndim != 1 or w.size < 2 or not np.all(w > 0):
+            raise ValueError(f"omega: a 1-D grid of > 1 positive frequencies [rad/s], got {w!r}")
+        return w
+    dt = _dt_of(L)
+    feats = [abs(complex(x)) for x in np.concatenate([L.poles(), L.zeros()])]
+    if dt:
+        zs = [complex(x) for x in np.concatenate([L.poles(), L.zeros()]) if abs(complex(x)) > 1e-12]
+        feats = [abs(complex(np.log(z) / dt)) for z in zs]
+    feats = [f for f in feats if f > 0 and np.isfinite(f)] or [1.0]
+    lo = min(feats) / 1e3
+    hi = math.pi / dt * 0.999 if dt else max(feats) * 1e3
+    return np.logspace(math.log10(lo), math.log10(hi), 4000)
+
+
+def _freq(L: Any, w: F64) -> NDArray[np.complex128]:
+    dt = _dt_of(L)
+    s = np.exp(1j * w * dt) if dt else 1j * w
+    return np.array([complex(L(x)) for x in s])
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Stability margins of a loop (module docstring). Units: dB, deg, s, rad/s, Hz.
+
+    ``gain_margin_db`` (None: no phase crossover), ``phase_margin_deg`` (None: no gain crossover),
+    ``delay_margin_s``, ``disk_margin`` (alpha), ``disk_margin_db``, ``disk_margin_deg``, ``ms``,
+    ``mt``, ``crossover_rad_s`` (gain crossover), ``phase_crossover_rad_s``, ``bandwidth_rad_s``,
+    ``closed_loop_poles``, ``natural_frequencies_hz`` (of the oscillatory closed-loop poles),
+    ``stable`` (closed loop), ``dt`` (sample period of a discrete loop, None if continuous),
+    ``reasons`` (``(figure, why None)`` pairs)."""
+
+    gain_margin_db: float | None
+    phase_margin_deg: float | None
+    delay_margin_s: float | None
+    disk_margin: float | None
+    disk_margin_db: float | None
+    disk_margin_deg: float | None
+    ms: float | None
+    mt: float | None
+    crossover_rad_s: float | None
+    phase_crossover_rad_s: float | None
+    bandwidth_rad_s: float | None
+    closed_loop_poles: tuple[Pole, ...]
+    natural_frequencies_hz: tuple[float, ...]
+    stable: bool | None
+    dt: float | None = None
+    reasons: tuple[tuple[str, str], ...] = ()
+
+    @classmethod
+    def undefined(cls, reason: str) -> LoopMargins:
+        """Every figure None with ``reason`` (e.g. the clutch loop is open when locked)."""
+        names = [f.name for f in dataclasses.fields(cls)]
+        kw: dict[str, Any] = dict.fromkeys(names)
+        kw["closed_loop_poles"] = ()
+        kw["natural_frequencies_hz"] = ()
+        kw["reasons"] = (("all", reason),)
+        return cls(**kw)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        d["closed_loop_poles"] = [dataclasses.asdict(p) for p in self.closed_loop_poles]
+        d["reasons"] = dict(self.reasons)
+        return json_ready(d)
+
+    def plot(self, L: Any = None, path: str | None = None) -> Any:
+        """Bode magnitude of ``L``, ``S`` and ``T`` (if ``L`` given) and the closed-loop poles."""
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(1, 2 if L is not None else 1, figsize=(10, 4), squeeze=False)
+        ax = axes[0][-1]
+        ax.plot(
+            [p.real for p in self.closed_loop_poles], [p.imag for p in self.closed_loop_poles], "x"
+        )
+        ax.axvline(0.0, color="k", lw=0.5)
+        ax.set_xlabel("Re [1/s]")
+        ax.set_ylabel("Im [rad/s]")
+        ax.set_title("closed-loop poles")
+        if L is not None:
+            w = _grid(L, None)
+            Lw = _freq(L, w)
+            a0 = axes[0][0]
+            for y, lab in ((Lw, "L"), (1 / (1 + Lw), "S"), (Lw / (1 + Lw), "T")):
+                a0.loglog(w, np.abs(y), label=lab)
+            a0.set_xlabel("omega [rad/s]")
+            a0.legend()
+            a0.set_title(
+                f"GM {self.gain_margin_db} dB, PM {self.phase_margin_deg} deg, "
+                f"DM {self.disk_margin_db} dB"
+            )
+        if path is not None:
+            fig.savefig(path)
+        return fig
+
+
+def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins:
+    """Margins of the SISO loop ``L`` (python-control LTI, continuous or discrete; negative
+    feedback). ``omega`` [rad/s]: frequency grid for the disk margin, ``ms``, ``mt`` and the
+    bandwidth (None: automatic, up to Nyquist for a discrete loop)."""
+    if not isinstance(L, control.LTI):
+        raise TypeError(f"L: a python-control LTI system is needed, got {type(L).__name__}")
+    if L.ninputs != 1 or L.noutputs != 1:
+        raise ValueError(f"L: must be SISO, got {L.ninputs} in / {L.noutputs} out")
+    dt = _dt_of(L)
+    reasons: list[tuple[str, str]] = []
+    Lt = control.tf(L)
+    cl = control.feedback(Lt, 1)
+    cpoles = np.asarray(cl.poles(), dtype=complex)
+    stable = bool(np.all(np.abs(cpoles) < 1.0)) if dt else bool(np.all(cpoles.real < 0))
+    gm, pm, _sm, wpc, wgc, _wms = control.stability_margins(Lt)
+    gm_db = None
+    if not np.isfinite(gm) or gm <= 0:
+        reasons.append(("gain_margin_db", "no phase crossover (phase never reaches -180 deg)"))
+        wpc_v = None
+    else:
+        gm_db = 20 * math.log10(gm)
+        wpc_v = float(wpc)
+    pm_v = wgc_v = dm_s = None
+    if not np.isfinite(pm) or not np.isfinite(wgc) or wgc <= 0:
+        reasons.append(("phase_margin_deg", "no gain crossover (|L| never equals 1)"))
+        reasons.append(("delay_margin_s", "no gain crossover"))
+    else:
+        pm_v, wgc_v = float(pm), float(wgc)
+        if pm_v <= 0 or not stable:
+            reasons.append(("delay_margin_s", "closed loop unstable"))
+        else:
+            dm_s = math.radians(pm_v) / wgc_v
+    w = _grid(Lt, omega)
+    Lw = _freq(Lt, w)
+    S = 1.0 / (1.0 + Lw)
+    T = Lw / (1.0 + Lw)
+    ms = float(np.max(np.abs(S)))
+    mt = float(np.max(np.abs(T)))
+    dm = ddb = ddeg = None
+    if stable:
+        DM, DGM, DPM = control.disk_margins(Lt, w, skew=0.0)
+        dm, ddb, ddeg = float(DM), float(DGM), float(DPM)
+    else:
+        reasons.append(("disk_margin", "closed loop unstable"))
+    T0 = abs(T[0])
+    bw = None
+    below = np.flatnonzero(np.abs(T) < T0 / math.sqrt(2))
+    if T0 > 0 and below.size:
+        k = int(below[0])
+        if k > 0:
+            # log-linear interpolation between the bracketing grid points
+            a, b = abs(T[k - 1]), abs(T[k])
+            thr = T0 / math.sqrt(2)
+            f = (a - thr) / (a - b) if a != b else 0.0
+            bw = float(10 ** (math.log10(w[k - 1]) + f * (math.log10(w[k]) - math.log10(w[k - 1]))))
+        else:
+            bw = float(w[0])
+    else:
+        reasons.append(("bandwidth_rad_s", "|T| does not fall 3 dB below |T(0)| on the grid"))
+    pl = poles_of(cpoles, dt)
+    nat = tuple(sorted({round(p.frequency_hz, 12) for p in pl if p.imag > 1e-9}))
+    return LoopMargins(
+        gain_margin_db=gm_db,
+        phase_margin_deg=pm_v,
+        delay_margin_s=dm_s,
+        disk_margin=dm,
+        disk_margin_db=ddb,
+        disk_margin_deg=ddeg,
+        ms=ms,
+        mt=mt,
+        crossover_rad_s=wgc_v,
+        phase_crossover_rad_s=wpc_v,
+        bandwidth_rad_s=bw,
+        closed_loop_poles=pl,
+        natural_frequencies_hz=nat,
+        stable=stable,
+        dt=dt,
+        reasons=tuple(reasons),
+    )
+
+
+def clutch_loop_margins(
+    op: OperatingPoint, controller: Controller, *, mu_slope: float | None = None
+) -> LoopMargins:
+    """Margins of ``controller``'s clutch loop at ``op``; with the clutch not slipping the loop
+    is open and every margin is None with the reason."""
+    if op.clutch_mode not in ("slip+", "slip-"):
+        return LoopMargins.undefined(
+            f"clutch {op.clutch_mode}: x_c does not act on the engine speed, the clutch loop is "
+            "open (see linear.locked_analysis for the shuffle modes and the breakaway margin)"
+        )
+    return loop_margins(clutch_loop(op, controller, mu_slope=mu_slope).L)
+
+
+# ---------------------------------------------------------------------------------------------
+# root loci
+# ---------------------------------------------------------------------------------------------
+
+PARAMETERS: dict[str, str] = {
+    "k_r": "m s/rad",
+    "pedal_slope": "-",
+    "J1": "kg m^2",
+    "omega_a": "rad/s",
+    "mu_slope": "s/rad",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class RootLocusPoint:
+    """Poles [1/s] at one parameter value, the mode of the operating point and stability."""
+
+    value: float
+    poles: tuple[Pole, ...]
+    modes: tuple[tuple[str, str], ...]
+    max_real: float
+    stable: bool
+
+
+@dataclass(frozen=True)
+class RootLocus:
+    """Closed-loop poles over a parameter grid (``parameter`` [``unit``]); each point re-linearised
+    and tagged with its mode."""
+
+    parameter: str
+    unit: str
+    points: tuple[RootLocusPoint, ...]
+
+    def crossing(self) -> float | None:
+        """First parameter value (linear interpolation of the largest real part) at which the
+        stability changes along the grid, None if it does not."""
+        pts = self.points
+        for a, b in zip(pts, pts[1:], strict=False):
+            if a.stable != b.stable:
+                f = a.max_real / (a.max_real - b.max_real) if a.max_real != b.max_real else 0.0
+                return a.value + f * (b.value - a.value)
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        return json_ready(
+            {
+                "parameter": self.parameter,
+                "unit": self.unit,
+                "crossing": self.crossing(),
+                "points": [
+                    {
+                        "value": p.value,
+                        "poles": [[q.real, q.imag] for q in p.poles],
+                        "modes": dict(p.modes),
+                        "max_real": p.max_real,
+                        "stable": p.stable,
+                    }
+                    for p in self.points
+                ],
+            }
+        )
+
+    def plot(self, path: str | None = None) -> Any:
+        """Poles in the complex plane, coloured by the parameter value."""
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(6, 5))
+        vals = [p.value for p in self.points]
+        for p in self.points:
+            sc = ax.scatter(
+                [q.real for q in p.poles],
+                [q.imag for q in p.poles],
+                c=[p.value] * len(p.poles),
+                vmin=min(vals),
+                vmax=max(vals),
+                s=8,
+            )
+        ax.axvline(0.0, color="k", lw=0.5)
+        ax.set_xlabel("Re [1/s]")
+        ax.set_ylabel("Im [rad/s]")
+        ax.set_title(f"root locus over {self.parameter} [{self.unit}]")
+        if self.points:
+            fig.colorbar(sc, ax=ax, label=f"{self.parameter} [{self.unit}]")
+        if path is not None:
+            fig.savefig(path)
+        return fig
+
+
+def _scaled_pedal_map(params: Any, x_c: float, factor: float) -> Any:
+    pm = params.clutch.pedal_map
+    k0 = float(pm(x_c))
+    y = np.clip(k0 + factor * (np.asarray(pm.y) - k0), 0.0, params.clutch.k12_max)
+    return params.replace(**{"clutch.pedal_map": {"x": list(pm.x), "y": [float(v) for v in y]}})
+
+
+def root_locus(
+    op: OperatingPoint,
+    controller: Controller | None,
+    *,
+    parameter: str,
+    values: Sequence[float],
+    mu_slope: float | None = None,
+) -> RootLocus:
+    """Closed-loop poles of the slip mode (or the plant's poles if the clutch does not slip)
+    over ``values`` of ``parameter``:
+
+    * ``k_r`` [m s/rad]: the gain of a static (law 6) controller;
+    * ``pedal_slope`` [-]: factor on the pedal-map slope around ``x_c`` (k13(x_c) kept; the map is
+      rebuilt and the point re-made, :func:`~drivetrain_ctrl.linear.rebuild_operating_point`);
+    * ``J1`` [kg m^2]: engine inertia (parameters replaced, point re-made);
+    * ``omega_a`` [rad/s]: actuator natural frequency;
+    * ``mu_slope`` [s/rad]: clutch friction slope (the linearisation override).
+    """
+    if parameter not in PARAMETERS:
+        raise ValueError(f"parameter = {parameter!r}: choose from {sorted(PARAMETERS)}")
+    vals = [float(v) for v in values]
+    if not vals or not all(math.isfinite(v) for v in vals):
+        raise ValueError(f"values = {values!r}: a non-empty sequence of finite numbers")
+    pts = []
+    for v in vals:
+        o, c, ms = op, controller, mu_slope
+        if parameter == "k_r":
+            if c is None or c.lti.nstates != 0 or c.is_discrete:
+                raise ValueError("parameter 'k_r': needs a static continuous controller (law 6)")
+            c = dataclasses.replace(c, lti=control.ss([], [], [], [[v]]))
+        elif parameter == "omega_a":
+            if c is None or c.actuator is None:
+                raise ValueError("parameter 'omega_a': needs a controller with an actuator")
+            c = dataclasses.replace(c, actuator=Actuator(v, c.actuator.delta))
+        elif parameter == "mu_slope":
+            ms = v
+        else:
+            if op.drivetrain is None or op.recipe is None:
+                raise ValueError(f"parameter {parameter!r}: op must come from a constructor")
+            p = op.drivetrain.params
+            if parameter == "J1":
+                p2 = p.replace(**{"engine.J1": v})
+            else:
+                xc = op.input("pedal")
+                p2 = _scaled_pedal_map(p, xc, v)
+            o = rebuild_operating_point(op, p2)
+        if o.clutch_mode in ("slip+", "slip-"):
+            poles = slip_mode_poles(o, c, mu_slope=ms)
+        else:
+            poles = np.linalg.eigvals(linearise(o).A)
+        mr = float(np.max(np.asarray(poles).real)) if len(poles) else -math.inf
+        pts.append(RootLocusPoint(v, poles_of(poles), o.mode_names, mr, bool(mr < 0)))
+    return RootLocus(parameter, PARAMETERS[parameter], tuple(pts))
+
+
+# ---------------------------------------------------------------------------------------------
+# Nyquist
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class NyquistData:
+    """Nyquist curve of ``L``: ``omega`` [rad/s], ``real``, ``imag`` of ``L(jw)`` (positive
+    frequencies), ``encirclements`` of -1 (python-control's count over the full contour),
+    ``open_loop_unstable_poles`` and the resulting number of closed-loop unstable poles
+    ``Z = N + P``."""
+
+    omega: tuple[float, ...]
+    real: tuple[float, ...]
+    imag: tuple[float, ...]
+    encirclements: int
+    open_loop_unstable_poles: int
+    closed_loop_unstable_poles: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return json_ready(dataclasses.asdict(self))
+
+    def plot(self, path: str | None = None) -> Any:
+        """The curve (and its mirror image) with the critical point -1."""
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(5, 5))
+        ax.plot(self.real, self.imag, "b")
+        ax.plot(self.real, [-y for y in self.imag], "b--")
+        ax.plot([-1], [0], "r+")
+        ax.set_xlabel("Re L")
+        ax.set_ylabel("Im L")
+        ax.set_title(f"Nyquist: N = {self.encirclements}, P = {self.open_loop_unstable_poles}")
+        if path is not None:
+            fig.savefig(path)
+        return fig
+
+
+def nyquist_data(L: Any, *, omega: Sequence[float] | None = None) -> NyquistData:
+    """Nyquist data of the SISO loop ``L`` (continuous or discrete)."""
+    Lt = control.tf(L)
+    dt = _dt_of(Lt)
+    w = _grid(Lt, omega)
+    Lw = _freq(Lt, w)
+    # python-control's own contour (indented around imaginary-axis poles) for the count
+    resp = control.nyquist_response(Lt, warn_encirclements=False, warn_nyquist=False)
+    N = int(resp.count)
+    p = np.asarray(Lt.poles(), dtype=complex)
+    P = int(np.sum(np.abs(p) > 1.0)) if dt else int(np.sum(p.real > 0))
+    return NyquistData(
+        omega=tuple(float(v) for v in w),
+        real=tuple(float(v) for v in Lw.real),
+        imag=tuple(float(v) for v in Lw.imag),
+        encirclements=N,
+        open_loop_unstable_poles=P,
+        closed_loop_unstable_poles=N + P,
+    )

@@ -1,0 +1,353 @@
+"""Clutch start controllers by name or from a TOML file: law (6) and its PI variant.
+
+A :class:`ControllerSpec` is data only (what the user chose); :meth:`ControllerSpec.build` turns it
+into a :class:`~drivetrain_ctrl.closedloop.Controller` for a drivetrain and a scenario's reference.
+The same :class:`Controller` serves the simulation (``simulate(..., controller=...)``) and the linear
+analysis (its ``lti``).
+
+Built-in controllers (:func:`builtin_controllers`):
+
+``paper``
+    The paper's law (6), continuous: ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``
+    with ``x_r0``, ``k_r`` from the parameter set (``law6`` section; the paper's 0.07 m and
+    3e-4 m s/rad).
+``pi``
+    A PI variant on the same signed error, ``x_r = x_r0 + sgn(.) (k_p e + k_i int e)``, with
+    anti-windup (the integrator holds while the actuator stroke saturates).
+``paper-10ms``, ``pi-10ms``
+    The same, sampled every 10 ms with a transport delay of one sample (a transmission control
+    unit).
+
+Measured speeds: the controller measures omega_1 (engine) and omega_3 (primary shaft) as in the
+paper. In the reduced model omega_3 is the primary-shaft speed, and the clutch slip is omega_1 -
+omega_3. In the full model the clutch slip itself is omega_1 - omega_2 (engine minus clutch disc);
+the disc and the primary shaft are separated by the torsional damper, so omega_3 (``omega_primary``)
+can differ slightly from the disc speed while the damper winds up. The sign switch uses
+``omega_engine - omega_primary`` in both models.
+
+At the clutch's lock event the output latches and moves without a jump from its current value to
+full engagement (the pedal map's engaged end) at ``engage_rate`` [m/s]; if the clutch slips again the
+controller re-arms, continuing from the current x_r (see :mod:`drivetrain_ctrl.closedloop`).
+
+A controller file (TOML; unknown keys are errors naming the key)::
+
+    name = "my-pi"
+    law = "pi"                 # "paper" (law 6) or "pi"
+    k_r = 3.0e-4               # [m s/rad] paper law gain (default: the parameter set's law6.k_r)
+    x_r0 = 0.07                # [m] output at zero error (default: law6.x_r0)
+    kp = 3.0e-4                # [m s/rad] PI proportional gain
+    ki = 1.5e-3                # [m/rad] PI integral gain
+    sample_period_s = 0.01     # optional: sampled controller
+    delay_samples = 1          # transport delay in samples (sampled only)
+    engage_rate_m_s = 0.05     # latch ramp rate after lock-up
+    rate_limit_m_s = 0.5       # optional actuator rate limit
+    anti_windup = true
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+import warnings
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import control
+import numpy as np
+
+from .closedloop import Actuator, Controller, LatchRamp
+from .signals import Signal
+
+__all__ = [
+    "UnstableLoopWarning",
+    "slip_loop",
+    "ControllerError",
+    "ControllerSpec",
+    "builtin_controllers",
+    "load_controller",
+    "LAWS",
+    "GAIN_RANGE",
+]
+
+#: control laws a spec can name
+LAWS: tuple[str, ...] = ("paper", "pi")
+
+#: accepted magnitude of a gain [m s/rad or m/rad]; beyond it the value is surely a unit error
+GAIN_RANGE: tuple[float, float] = (0.0, 1.0)
+
+#: (min, max) of the sample period [s]
+SAMPLE_PERIOD_RANGE: tuple[float, float] = (1e-5, 0.5)
+
+#: smallest back-calculation time constant [s] of the PI anti-windup
+MIN_ANTI_WINDUP_TIME_S: float = 0.01
+
+#: largest transport delay [samples]
+MAX_DELAY_SAMPLES: int = 100
+
+
+class ControllerError(ValueError):
+    """A controller spec or file is invalid (the message names the field and the value)."""
+
+
+class UnstableLoopWarning(UserWarning):
+    """The slip-mode loop of a controller is unstable at its nominal operating point."""
+
+
+def _finite(where: str, name: str, v: Any, lo: float, hi: float, *, lo_open: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ControllerError(f"{where}{name} = {v!r}: must be a finite number")
+    ok = (v > lo if lo_open else v >= lo) and v <= hi
+    if not ok:
+        br = "(" if lo_open else "["
+        raise ControllerError(f"{where}{name} = {v!r}: out of range {br}{lo}, {hi}]")
+    return float(v)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControllerSpec:
+    """A clutch start controller, as data (see the module docstring for the fields' meaning).
+
+    Units: ``k_r``, ``kp`` [m s/rad]; ``ki`` [m/rad]; ``x_r0`` [m]; ``sample_period_s`` [s];
+    ``engage_rate_m_s``, ``rate_limit_m_s`` [m/s]. ``None`` for ``k_r``/``x_r0`` takes the parameter
+    set's ``law6`` values.
+    """
+
+    name: str
+    law: str = "paper"
+    k_r: float | None = None
+    x_r0: float | None = None
+    kp: float | None = None
+    ki: float | None = None
+    sample_period_s: float | None = None
+    delay_samples: int = 0
+    engage_rate_m_s: float = 0.05
+    rate_limit_m_s: float | None = None
+    anti_windup: bool = True
+
+    def __post_init__(self) -> None:
+        w = f"controller {self.name!r}: "
+        if self.law not in LAWS:
+            close = difflib.get_close_matches(str(self.law), LAWS, n=1)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ControllerError(f"{w}law = {self.law!r}: known laws {LAWS}{hint}")
+        lo, hi = GAIN_RANGE
+        if self.k_r is not None:
+            _finite(w, "k_r", self.k_r, lo, hi, lo_open=True)
+        if self.x_r0 is not None:
+            _finite(w, "x_r0", self.x_r0, -1.0, 1.0)
+        if self.law == "pi":
+            if self.kp is None or self.ki is None:
+                raise ControllerError(f"{w}law 'pi' needs kp and ki")
+            _finite(w, "kp", self.kp, lo, hi)
+            _finite(w, "ki", self.ki, lo, hi)
+        elif self.kp is not None or self.ki is not None:
+            raise ControllerError(f"{w}kp/ki are PI gains; law {self.law!r} uses k_r")
+        if self.sample_period_s is not None:
+            _finite(w, "sample_period_s", self.sample_period_s, *SAMPLE_PERIOD_RANGE)
+        d = self.delay_samples
+        if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DELAY_SAMPLES:
+            raise ControllerError(
+                f"{w}delay_samples = {d!r}: must be an integer in [0, {MAX_DELAY_SAMPLES}]"
+            )
+        if d and self.sample_period_s is None:
+            raise ControllerError(f"{w}delay_samples = {d}: needs sample_period_s")
+        _finite(w, "engage_rate_m_s", self.engage_rate_m_s, 0.0, 10.0, lo_open=True)
+        if self.rate_limit_m_s is not None:
+            _finite(w, "rate_limit_m_s", self.rate_limit_m_s, 0.0, 100.0, lo_open=True)
+        if not isinstance(self.anti_windup, bool):
+            raise ControllerError(f"{w}anti_windup = {self.anti_windup!r}: must be true or false")
+
+    def anti_windup_time_s(self) -> float | None:
+        """Back-calculation time constant T_t [s] of the PI: its integral time kp/ki, at least
+        :data:`MIN_ANTI_WINDUP_TIME_S` (None: law (6) has no state, or anti-windup is off)."""
+        if self.law != "pi" or not self.anti_windup:
+            return None
+        assert self.kp is not None and self.ki is not None
+        if self.ki == 0.0:
+            return None
+        return max(self.kp / self.ki, MIN_ANTI_WINDUP_TIME_S)
+
+    @property
+    def is_sampled(self) -> bool:
+        return self.sample_period_s is not None
+
+    def to_dict(self) -> dict[str, Any]:
+        """TOML/JSON-ready form (``None`` fields left out)."""
+        return {k: v for k, v in asdict(self).items() if v is not None}
+
+    def lti(self, params: Any) -> control.StateSpace:
+        """The LTI block from the signed speed error [rad/s] to x_r - x_r0 [m]."""
+        ts = self.sample_period_s
+        if self.law == "paper":
+            k = params.law6.k_r if self.k_r is None else self.k_r
+            return control.ss([], [], [], [[k]], ts) if ts else control.ss([], [], [], [[k]])
+        assert self.kp is not None and self.ki is not None
+        if ts is None:
+            return control.ss([[0.0]], [[1.0]], [[self.ki]], [[self.kp]])
+        # forward-Euler integrator: x[k+1] = x[k] + Ts e[k]
+        return control.ss([[1.0]], [[ts]], [[self.ki]], [[self.kp]], ts)
+
+    def check_stability(self, params: Any) -> tuple[bool, list[complex]]:
+        """Closed-loop poles of the slip-mode loop (:func:`slip_loop`) at x_c = x_r0; returns
+        ``(stable, poles)`` and warns :class:`UnstableLoopWarning` if unstable. The simulation
+        still runs: the warning only says what to expect."""
+        L = slip_loop(self, params)
+        poles = [complex(p) for p in np.atleast_1d(control.poles(control.feedback(L, 1)))]
+        if L.isdtime(strict=True):
+            stable = all(abs(p) < 1.0 for p in poles)
+        else:
+            stable = all(p.real < 0.0 for p in poles)
+        if not stable:
+            worst = max(poles, key=lambda p: abs(p) if L.isdtime(strict=True) else p.real)
+            warnings.warn(
+                f"controller {self.name!r}: the slip-mode loop is unstable at x_c = x_r0 "
+                f"(closed-loop pole {worst:.4g}); the simulation runs, expect oscillation or "
+                "divergence of the engine speed",
+                UnstableLoopWarning,
+                stacklevel=2,
+            )
+        return stable, poles
+
+    def build(
+        self,
+        params: Any,
+        *,
+        reference: Signal,
+        start_time: float | None = None,
+        engine_state: str = "omega_engine",
+        driven_state: str = "omega_primary",
+    ) -> Controller:
+        """The :class:`Controller` for parameter set ``params`` and engine-speed reference
+        ``reference`` (omega_r(t) [rad/s]), active from ``start_time`` [s] (None: from the start).
+        """
+        lw, act = params.law6, params.actuator
+        x_r0 = lw.x_r0 if self.x_r0 is None else self.x_r0
+        self.check_stability(params)
+        latch = LatchRamp(
+            "clutch", "stuck", self.engage_rate_m_s, float(params.clutch.pedal_map.x[0])
+        )
+        rate = None
+        if self.rate_limit_m_s is not None:
+            # a first-order follower of bandwidth 10 omega_a, limited to the rate
+            rate = (self.rate_limit_m_s, 10.0 * act.omega_a)
+        return Controller(
+            name=self.name,
+            lti=self.lti(params),
+            measurement=((1.0, "ref"), (-1.0, engine_state)),
+            output="pedal",
+            reference=reference,
+            delay_samples=self.delay_samples,
+            sign_of=(engine_state, driven_state),
+            offset=x_r0,
+            saturation=(act.x_min, act.x_max),
+            latch=latch,
+            rate_limit=rate,
+            actuator=Actuator(act.omega_a, act.delta_a),
+            start_time=start_time,
+            anti_windup_time=self.anti_windup_time_s(),
+        )
+
+
+def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
+    """Loop gain of ``spec`` in slip with a constant friction coefficient, at x_c = x_r0.
+
+    ``L = C(s) |k13'(x_r0)| A(s) / (J_1 s + b_1)``: controller LTI block ``C`` [m s/rad], pedal-map
+    slope ``k13'`` [N m/m], actuator ``A`` [-], engine inertia ``J_1`` [kg m^2] and viscous
+    friction ``b_1`` [N m s/rad] (the Coulomb part of the engine friction is constant in slip and
+    does not enter). The same on both sign branches of law (6): the sign switch and the sign of the
+    clutch torque cancel. Sampled controllers: the plant is discretised with a zero-order hold at
+    the sample period and the transport delay is ``z^-d``. A first check used by :meth:`build`;
+    the linear-analysis module gives the full picture (slip-dependent mu, driveline coupling).
+    """
+    pm = params.clutch.pedal_map
+    x0 = params.law6.x_r0 if spec.x_r0 is None else spec.x_r0
+    xs, ys = np.asarray(pm.x, dtype=float), np.asarray(pm.y, dtype=float)
+    k = int(np.clip(np.searchsorted(xs, x0, side="right") - 1, 0, len(xs) - 2))
+    slope = abs((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]))
+    w, d = params.actuator.omega_a, params.actuator.delta_a
+    plant = control.tf([slope * w * w], [params.engine.J1, params.engine.b1]) * control.tf(
+        [1.0], [1.0, 2.0 * d * w, w * w]
+    )
+    C = control.tf(spec.lti(params))
+    ts = spec.sample_period_s
+    if ts is None:
+        return control.tf(control.series(C, plant))
+    pd = control.c2d(plant, ts, method="zoh")
+    delay = control.tf([1.0], [1.0] + [0.0] * spec.delay_samples, ts)
+    return control.tf(control.series(C, pd, delay))
+
+
+#: PI gains of the built-in ``pi`` controllers (integral corner ki/kp = 5 rad/s), chosen on the
+#: reduced model for tracking_rms_rpm <= 120 on paper-start; their margins are in the report
+_PI_KP = 1.0e-3
+_PI_KI = 5.0e-3
+
+
+def builtin_controllers() -> dict[str, ControllerSpec]:
+    """The built-in controllers (see the module docstring)."""
+    specs = [
+        ControllerSpec(name="paper", law="paper"),
+        ControllerSpec(name="pi", law="pi", kp=_PI_KP, ki=_PI_KI),
+        ControllerSpec(name="paper-10ms", law="paper", sample_period_s=0.01, delay_samples=1),
+        ControllerSpec(
+            name="pi-10ms", law="pi", kp=_PI_KP, ki=_PI_KI, sample_period_s=0.01, delay_samples=1
+        ),
+    ]
+    return {s.name: s for s in specs}
+
+
+_KEYS = {
+    "name",
+    "law",
+    "k_r",
+    "x_r0",
+    "kp",
+    "ki",
+    "sample_period_s",
+    "delay_samples",
+    "engage_rate_m_s",
+    "rate_limit_m_s",
+    "anti_windup",
+}
+
+
+def controller_from_dict(d: dict[str, Any], *, where: str = "") -> ControllerSpec:
+    """A :class:`ControllerSpec` from its TOML form; unknown keys are errors naming the key."""
+    for k in sorted(set(d) - _KEYS):
+        close = difflib.get_close_matches(k, sorted(_KEYS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {sorted(_KEYS)}"
+        raise ControllerError(f"{where}{k}: unknown key{hint}")
+    if "law" not in d:
+        raise ControllerError(f"{where}law: missing (one of {LAWS})")
+    try:
+        return ControllerSpec(**{"name": "controller", **d})
+    except TypeError as exc:  # pragma: no cover - keys are checked above
+        raise ControllerError(f"{where}{exc}") from None
+
+
+def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:
+    """A built-in controller by name, a controller TOML file, or a spec (returned as is)."""
+    if isinstance(source, ControllerSpec):
+        return source
+    b = builtin_controllers()
+    if isinstance(source, str) and source in b:
+        return b[source]
+    p = Path(source)
+    if p.suffix != ".toml" or not p.exists():
+        close = difflib.get_close_matches(str(source), sorted(b), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise ControllerError(
+            f"controller {str(source)!r}: not a built-in controller ({sorted(b)}) "
+            f"nor an existing .toml file{hint}"
+        )
+    with p.open("rb") as fh:
+        try:
+            d = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise ControllerError(f"{p}: invalid TOML: {exc}") from exc
+    try:
+        return controller_from_dict(d)
+    except ControllerError as exc:
+        raise ControllerError(f"{exc} (in {p})") from None

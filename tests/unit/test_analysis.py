@@ -1,0 +1,173 @@
+"""Loop margins, root loci and Nyquist data (analysis.py)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import control
+import numpy as np
+import pytest
+import scipy.optimize
+
+from drivetrain_ctrl import analysis as A
+from drivetrain_ctrl import linear as L
+from drivetrain_ctrl import signals as sg
+from drivetrain_ctrl.closedloop import law6_controller, pi_controller
+from drivetrain_ctrl.drivetrain import reduced_model
+from drivetrain_ctrl.params import default_params
+
+P = default_params()
+
+
+def _textbook(k: float) -> control.TransferFunction:
+    return control.tf([k], np.polymul([1, 0], np.polymul([1, 1], [1, 1])))
+
+
+def test_margins_of_textbook_loop_by_hand():
+    # L = k / (s (s + 1)^2): phase -180 deg at w = 1 where |L| = k/2 -> GM = 2/k
+    k = 1.0
+    m = A.loop_margins(_textbook(k))
+    assert m.phase_crossover_rad_s == pytest.approx(1.0, rel=1e-6)
+    assert m.gain_margin_db == pytest.approx(20 * math.log10(2.0 / k), rel=1e-6)
+    wc = scipy.optimize.brentq(lambda w: w * (1 + w * w) - k, 0.1, 2.0)
+    pm = 180.0 - 90.0 - 2 * math.degrees(math.atan(wc))
+    assert m.crossover_rad_s == pytest.approx(wc, rel=1e-6)
+    assert m.phase_margin_deg == pytest.approx(pm, rel=1e-6)
+    assert m.delay_margin_s == pytest.approx(math.radians(pm) / wc, rel=1e-6)
+    # symmetric disk margin: alpha = 1 / max |S - T| / 2, gain (1 + a/2)/(1 - a/2)
+    w = np.logspace(-3, 3, 20001)
+    Lw = k / (1j * w * (1j * w + 1) ** 2)
+    alpha = 1.0 / np.max(np.abs((1 - Lw) / (1 + Lw)) / 2)
+    assert m.disk_margin == pytest.approx(alpha, rel=1e-3)
+    assert m.disk_margin_db == pytest.approx(
+        20 * math.log10((1 + alpha / 2) / (1 - alpha / 2)), rel=1e-3
+    )
+    assert m.disk_margin_deg == pytest.approx(math.degrees(2 * math.atan(alpha / 2)), rel=1e-3)
+    assert m.ms == pytest.approx(np.max(np.abs(1 / (1 + Lw))), rel=1e-3)
+    assert m.mt == pytest.approx(np.max(np.abs(Lw / (1 + Lw))), rel=1e-3)
+    assert m.stable and m.bandwidth_rad_s is not None and m.bandwidth_rad_s > wc
+    # closed loop s^3 + 2 s^2 + s + 1: poles and their natural frequencies
+    cl = np.roots([1, 2, 1, k])
+    assert sorted(p.real for p in m.closed_loop_poles) == pytest.approx(sorted(cl.real))
+    assert len(m.natural_frequencies_hz) == 1
+    json.dumps(m.to_dict())
+    # k = 4: GM = 0.5 (unstable), margins flagged
+    m4 = A.loop_margins(_textbook(4.0))
+    assert not m4.stable and m4.gain_margin_db == pytest.approx(20 * math.log10(0.5), rel=1e-6)
+    assert m4.disk_margin is None and dict(m4.reasons)["disk_margin"] == "closed loop unstable"
+
+
+def test_undefined_margins_have_reasons():
+    m = A.loop_margins(control.tf([0.5], [1, 1]))  # |L| < 1, phase > -90
+    r = dict(m.reasons)
+    assert m.gain_margin_db is None and "phase crossover" in r["gain_margin_db"]
+    assert m.phase_margin_deg is None and "gain crossover" in r["phase_margin_deg"]
+    with pytest.raises(TypeError, match="LTI"):
+        A.loop_margins([1, 2])  # type: ignore[arg-type]
+
+
+def _slip():
+    return L.slip_operating_point(
+        reduced_model(P), omega_engine=170.0, omega_driven=80.0, x_c=0.0725, throttle=0.5
+    )
+
+
+def _law6():
+    return law6_controller(P, reference=sg.constant(170.0), driven_state="omega_primary")
+
+
+def test_clutch_loop_margins_law6_and_sampled():
+    op = _slip()
+    m = A.clutch_loop_margins(op, _law6())
+    assert m.stable and m.gain_margin_db is not None and m.gain_margin_db > 20
+    # first order-like loop: the gain crossover is about K_L / J1
+    es = L.engine_side(op)
+    assert m.crossover_rad_s == pytest.approx(P.law6.k_r * abs(es.dk13_dxc) / es.J1, rel=0.05)
+    cd = pi_controller(
+        P,
+        reference=sg.constant(170.0),
+        kp=3e-4,
+        ki=1e-3,
+        dt=0.02,
+        delay_samples=2,
+        driven_state="omega_primary",
+    )
+    cc = pi_controller(
+        P, reference=sg.constant(170.0), kp=3e-4, ki=1e-3, driven_state="omega_primary"
+    )
+    md = A.clutch_loop_margins(op, cd)
+    mc = A.clutch_loop_margins(op, cc)
+    assert md.dt == 0.02 and mc.dt is None
+    assert md.phase_margin_deg < mc.phase_margin_deg  # sample-and-hold and delay cost phase
+
+
+def test_locked_clutch_loop_margins_are_none():
+    op = L.locked_trim(reduced_model(P), vehicle_speed_kmh=25.0)
+    m = A.clutch_loop_margins(op, _law6())
+    d = m.to_dict()
+    assert m.gain_margin_db is None and m.phase_margin_deg is None and m.disk_margin is None
+    assert "open" in d["reasons"]["all"]
+
+
+def test_root_locus_over_mu_slope_crosses_at_judder_threshold():
+    op = _slip()
+    jt = L.judder_threshold(op, _law6())
+    vals = np.linspace(0.5, 1.5, 11) * jt.mu_slope_crit
+    rl = A.root_locus(op, _law6(), parameter="mu_slope", values=vals)
+    assert rl.crossing() == pytest.approx(jt.mu_slope_crit, rel=0.02)
+    assert all(dict(p.modes)["clutch"] == "slip+" for p in rl.points)
+    d = rl.to_dict()
+    assert json.dumps(d) == json.dumps(rl.to_dict())  # deterministic
+
+
+@pytest.mark.parametrize(
+    ("parameter", "values"),
+    [
+        ("k_r", [1e-4, 3e-4, 1e-3]),
+        ("omega_a", [50.0, 200.0]),
+        ("J1", [0.15, 0.25]),
+        ("pedal_slope", [0.5, 1.0, 2.0]),
+    ],
+)
+def test_root_locus_parameters(parameter, values):
+    rl = A.root_locus(_slip(), _law6(), parameter=parameter, values=values)
+    assert [p.value for p in rl.points] == values
+    assert all(p.stable for p in rl.points)
+    json.dumps(rl.to_dict())
+
+
+def test_root_locus_k_r_moves_the_engine_pole():
+    # with constant mu the engine pole sits near -(b1 + k_r |k13'|)/J1 for a fast actuator
+    op = _slip()
+    es = L.engine_side(op)
+    rl = A.root_locus(op, _law6(), parameter="k_r", values=[1e-4])
+    target = -(es.b1_eff + 1e-4 * abs(es.dk13_dxc)) / es.J1
+    reals = [p.real for p in rl.points[0].poles if abs(p.imag) < 1e-9]
+    assert min(abs(r - target) for r in reals) < 0.02 * abs(target)
+
+
+def test_root_locus_bad_parameter():
+    with pytest.raises(ValueError, match="parameter = 'mass'"):
+        A.root_locus(_slip(), _law6(), parameter="mass", values=[1.0])
+
+
+def test_nyquist_counts():
+    n1 = A.nyquist_data(_textbook(1.0))
+    assert n1.closed_loop_unstable_poles == 0 and n1.open_loop_unstable_poles == 0
+    n4 = A.nyquist_data(_textbook(4.0))
+    assert n4.closed_loop_unstable_poles == 2
+    json.dumps(n1.to_dict())
+
+
+def test_plots_run(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    m = A.loop_margins(_textbook(1.0))
+    m.plot(_textbook(1.0), path=str(tmp_path / "m.png"))
+    A.nyquist_data(_textbook(1.0)).plot(str(tmp_path / "n.png"))
+    A.root_locus(_slip(), _law6(), parameter="k_r", values=[1e-4, 3e-4]).plot(
+        str(tmp_path / "r.png")
+    )
+    assert (tmp_path / "m.png").exists() and (tmp_path / "r.png").exists()
