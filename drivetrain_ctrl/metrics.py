@@ -467,7 +467,10 @@ def _engagement_window(
     out["start_s"] = t_start
     notes: list[str] = []
     t_final = float(t[-1])
-    if fc is not None and t_lock is None:
+    always_stuck = fc is not None and bool(np.all(res.fm[:, fc[0]] == 0))
+    if always_stuck:
+        notes.append("the clutch stayed locked throughout the run (no engagement to measure)")
+    elif fc is not None and t_lock is None:
         notes.append(
             f"the clutch did not lock up (no stuck phase of at least {LOCKUP_MIN_DURATION_S} s) "
             f"within the horizon of {t_final:g} s: lockup_time_s is null"
