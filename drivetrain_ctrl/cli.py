@@ -367,6 +367,27 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from .report import build_report
+
+    params = _load_params(args.params)
+    try:
+        rep = build_report(
+            controller=args.controller,
+            params=params,
+            model=args.model,
+            scenario=args.scenario,
+            out=Path(args.out),
+        )
+    except (ValueError, KeyError) as exc:  # ControllerError, ScenarioError are ValueErrors
+        raise InputError(_msg(exc)) from None
+    except OSError as exc:
+        raise RunError(f"cannot write the report to {args.out}: {exc}") from None
+    for f in rep.files:
+        print(f)
+    return 0
+
+
 def _value_text(v: Any) -> str:
     if v is None:
         return "-"
@@ -483,6 +504,22 @@ def build_parser() -> argparse.ArgumentParser:
         "(default: open loop; paper-start needs one)",
     )
     sp.set_defaults(func=_cmd_simulate)
+
+    rp = sub.add_parser(
+        "report", help="linear analysis report of a controller: report.html, report.pdf, data.json"
+    )
+    rp.add_argument(
+        "--controller",
+        default="paper",
+        help="paper, pi, paper-10ms, pi-10ms or a controller .toml file (default: paper)",
+    )
+    rp.add_argument("--params", default=DEFAULT_PARAMS, help="parameter set name or .toml file")
+    rp.add_argument("--model", choices=MODELS, default="reduced", help="model (default: reduced)")
+    rp.add_argument(
+        "--scenario", default="paper-start", help="closed-loop scenario (default: paper-start)"
+    )
+    rp.add_argument("--out", required=True, help="output directory (created if needed)")
+    rp.set_defaults(func=_cmd_report)
 
     dp = sub.add_parser("demo", help="run the built-in scenarios on both models; summary.md")
     dp.add_argument("--out", required=True, help="output directory")

@@ -146,3 +146,27 @@ def test_demo_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert not (tmp_path / "engage-ramp-full").exists()
     assert "lock-up time [s]" in summary
     assert str(tmp_path / "summary.md") in capsys.readouterr().out
+
+
+def test_report_command_writes_the_three_files(tmp_path: Path) -> None:
+    from drivetrain_ctrl.cli import main
+
+    assert main(["report", "--controller", "paper", "--out", str(tmp_path / "r")]) == 0
+    for f in ("report.html", "report.pdf", "data.json"):
+        assert (tmp_path / "r" / f).stat().st_size > 1000
+    assert main(["report", "--controller", "papr", "--out", str(tmp_path / "x")]) == 2
+    assert not (tmp_path / "x").exists()
+
+
+def test_simulate_closed_loop_scenario_needs_a_controller(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from drivetrain_ctrl.cli import main
+
+    assert main(["simulate", "--scenario", "paper-start", "--out", str(tmp_path)]) == 2
+    assert "needs a controller" in capsys.readouterr().err
+    code = main(
+        ["simulate", "--scenario", "paper-start", "--controller", "pi", "--model", "reduced",
+         "--out", str(tmp_path)]
+    )  # fmt: skip
+    assert code == 0
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert m["controller"]["name"] == "pi" and m["tracking_rms_rpm"] < 120.0

@@ -1,0 +1,116 @@
+"""The controller report (report.py): files, sections, data keys, determinism, argument errors."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import matplotlib
+import pytest
+
+from drivetrain_ctrl.controllers import ControllerError
+from drivetrain_ctrl.report import MARGIN_KEYS, SECTIONS, build_report
+
+matplotlib.use("Agg")
+
+SCALAR_MARGINS = (
+    "gain_margin_db",
+    "phase_margin_deg",
+    "delay_margin_s",
+    "disk_margin_db",
+    "disk_margin_deg",
+    "ms",
+    "mt",
+    "crossover_rad_s",
+)
+
+
+@pytest.fixture(scope="module")
+def paper_report(tmp_path_factory):
+    return build_report(controller="paper", model="reduced", out=tmp_path_factory.mktemp("paper"))
+
+
+def _check_report(rep, controller: str) -> dict:
+    out = rep.out
+    for name in ("data.json", "report.html", "report.pdf"):
+        assert (out / name).is_file() and (out / name) in rep.files
+    data = json.loads((out / "data.json").read_text())
+    assert data == rep.data
+    for mode in ("slip", "lock"):
+        entry = data["modes"][mode][controller]
+        for k in MARGIN_KEYS:
+            assert k in entry, (mode, k)
+    slip = data["modes"]["slip"][controller]
+    for k in SCALAR_MARGINS:
+        assert isinstance(slip[k], float) and math.isfinite(slip[k]), k
+    assert slip["closed_loop_poles"] and all(p["real"] < 0 for p in slip["closed_loop_poles"])
+    for k in ("L", "S", "T"):
+        assert set(slip["bode"][k]) == {"omega", "magnitude_db", "phase_deg"}
+        assert set(slip["transfer_functions"][k]) == {"num", "den", "dt"}
+    assert slip["nyquist"]["real"] and slip["root_locus"]["gain"]["points"]
+    assert slip["root_locus"]["mu_slope"]["points"]
+    lock = data["modes"]["lock"][controller]
+    for k in MARGIN_KEYS:
+        assert lock[k] is None and "open" in lock["reasons"][k]
+    assert lock["shuffle_modes"] and lock["shuffle_modes"][0]["natural_frequency_hz"] > 0
+    assert lock["breakaway_margins"]["clutch"]["margin"] > 0
+    assert data["engagement_metrics"]["lockup_time_s"] is not None
+    steps = data["linear_vs_nonlinear"]["steps"]
+    assert steps and all(len(s["linear_rpm"]) == len(s["nonlinear_rpm"]) for s in steps.values())
+    assert all(s["statement"] for s in steps.values())
+    return data
+
+
+def test_report_paper_reduced(paper_report):
+    data = _check_report(paper_report, "paper")
+    html = (paper_report.out / "report.html").read_text()
+    assert html.count("data:image/png;base64,") >= 5
+    for title in SECTIONS:
+        assert title in html, title
+    pdf = (paper_report.out / "report.pdf").read_bytes()
+    assert pdf.startswith(b"%PDF")
+    assert pdf.count(b"/Type /Page") - pdf.count(b"/Type /Pages") >= 4
+    # the small step stays in the linear range for law (6)
+    assert data["linear_vs_nonlinear"]["steps"]["small"]["agree"]
+
+
+def test_report_plot_returns_figures(paper_report):
+    import matplotlib.pyplot as plt
+
+    figs = paper_report.plot()
+    assert {"bode", "root_locus", "nyquist", "step", "engagement", "lock"} <= set(figs)
+    for f in figs.values():
+        plt.close(f)
+
+
+def test_report_data_is_deterministic(paper_report, tmp_path):
+    again = build_report(controller="paper", model="reduced", out=tmp_path / "again")
+    a = (paper_report.out / "data.json").read_bytes()
+    b = (again.out / "data.json").read_bytes()
+    assert a == b
+
+
+def test_report_pi_10ms(tmp_path):
+    rep = build_report(controller="pi-10ms", out=tmp_path)
+    data = _check_report(rep, "pi-10ms")
+    assert data["modes"]["slip"]["pi-10ms"]["sample_period_s"] == pytest.approx(0.01)
+    assert data["modes"]["slip"]["pi-10ms"]["root_locus"]["gain"]["parameter"] == "gain_factor"
+
+
+def test_report_bad_arguments(tmp_path):
+    with pytest.raises(ControllerError, match="controller 'nope'"):
+        build_report(controller="nope", out=tmp_path)
+    with pytest.raises(ValueError, match="model = 'medium'"):
+        build_report(model="medium", out=tmp_path)
+    with pytest.raises(ValueError, match="scenario 'nope'"):
+        build_report(scenario="nope", out=tmp_path)
+    with pytest.raises(ValueError, match="scenario = 'engage-ramp'"):
+        build_report(scenario="engage-ramp", out=tmp_path)
+    with pytest.raises(ValueError, match="params = 'nope'"):
+        build_report(params="nope", out=tmp_path)
+    assert not (tmp_path / "data.json").exists()
+
+
+def test_report_full_model(tmp_path):
+    rep = build_report(controller="paper", model="full", out=tmp_path)
+    _check_report(rep, "paper")
