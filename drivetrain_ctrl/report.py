@@ -387,8 +387,11 @@ def _step_comparison(
     runs = {}
     if ref is None:  # pragma: no cover - checked by build_report
         raise ValueError(f"scenario {sc.name!r}: no reference")
+    # the controller state is matched to the pedal with the nominal reference in both runs (the
+    # step must reach the controller, not be absorbed into its initial state)
+    c0 = _matched_controller(spec, params, op, ref)
     for name, r in (("nominal", ref), ("perturbed", ref + step(t0, d))):
-        c = _matched_controller(spec, params, op, r)
+        c = dataclasses.replace(c0, reference=r)
         runs[name] = simulate(
             dtr.model,
             np.array(op.x),

@@ -97,6 +97,15 @@ def test_report_pi_10ms(tmp_path):
     assert data["modes"]["slip"]["pi-10ms"]["root_locus"]["gain"]["parameter"] == "gain_factor"
 
 
+def test_report_pi_small_step_agrees_with_the_linear_prediction(tmp_path):
+    """The PI's step reaches the controller in the nonlinear run too (its integrator state is
+    matched with the nominal reference): a small reference step stays within 10 % of the linear
+    closed-loop prediction."""
+    rep = build_report(controller="pi", out=tmp_path)
+    small = rep.data["linear_vs_nonlinear"]["steps"]["small"]
+    assert small["agree"] and small["relative_peak_difference"] < 0.1
+
+
 def test_report_bad_arguments(tmp_path):
     with pytest.raises(ControllerError, match="controller 'nope'"):
         build_report(controller="nope", out=tmp_path)
