@@ -316,6 +316,11 @@ def _summary_md(
         "",
         "## Outputs",
         "",
+        "Linear analysis report of law (6) on the reduced model (margins per mode, Bode, root",
+        "loci, Nyquist, linear vs switching-plant step): [report-paper/report.html]"
+        "(report-paper/report.html), [PDF](report-paper/report.pdf), "
+        "[data.json](report-paper/data.json).",
+        "",
         "| run | overview | energy | data |",
         "|---|---|---|---|",
     ]
@@ -355,6 +360,16 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         r = run_simulation(sc, params, kind, out / f"{label}-{kind}", controller=ctl)
         done.append((label, kind, r))
     bar.close()
+    from .report import build_report
+
+    print(
+        f"{PROG} demo: linear analysis report of law (6) -> {out / 'report-paper'}/",
+        file=sys.stderr,
+    )
+    try:
+        build_report(controller="paper", params=params, model="reduced", out=out / "report-paper")
+    except OSError as exc:
+        raise RunError(f"cannot write the report to {out / 'report-paper'}: {exc}") from None
     try:
         (out / "summary.md").write_text(_summary_md(done, params, args.quick), encoding="utf-8")
     except OSError as exc:
