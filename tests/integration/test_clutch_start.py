@@ -306,3 +306,20 @@ def test_builtin_controllers_are_stable_in_slip() -> None:
     L = slip_loop(builtin_controllers()["paper"], P)
     dc = float(np.real(control.evalfr(L, 0.0)))
     assert dc == pytest.approx(P.law6.k_r * k13p / P.engine.b1, rel=1e-9)
+
+
+def test_closed_loop_scenario_round_trips_through_toml(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import tomli_w
+
+    f = tmp_path / "start.toml"
+    f.write_text(tomli_w.dumps(SC.to_dict()))
+    sc2 = load_scenario(str(f))
+    assert sc2.control_start == 0.5 and sc2.needs_controller and sc2.pedal0 == SC.pedal0
+    _, m1 = _run("reduced", "paper")
+    _, m2 = _run("reduced", "paper", sc=sc2)
+    assert m2["lockup_time_s"] == pytest.approx(m1["lockup_time_s"], abs=1e-9)
+    f.write_text(
+        tomli_w.dumps({**SC.to_dict(), "controller": {"reference_rpm": 1.0, "strat_s": 1}})
+    )
+    with pytest.raises(ScenarioError, match="strat_s.*did you mean 'start_s'"):
+        load_scenario(str(f))
