@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import tomllib
 import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -58,6 +57,7 @@ import control
 import numpy as np
 
 from .closedloop import Actuator, Controller, LatchRamp
+from .loading import load_builtin_or_toml
 from .signals import Signal
 
 __all__ = [
@@ -332,22 +332,6 @@ def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:
     if isinstance(source, ControllerSpec):
         return source
     b = builtin_controllers()
-    if isinstance(source, str) and source in b:
-        return b[source]
-    p = Path(source)
-    if p.suffix != ".toml" or not p.exists():
-        close = difflib.get_close_matches(str(source), sorted(b), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise ControllerError(
-            f"controller {str(source)!r}: not a built-in controller ({sorted(b)}) "
-            f"nor an existing .toml file{hint}"
-        )
-    with p.open("rb") as fh:
-        try:
-            d = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ControllerError(f"{p}: invalid TOML: {exc}") from exc
-    try:
-        return controller_from_dict(d)
-    except ControllerError as exc:
-        raise ControllerError(f"{exc} (in {p})") from None
+    return load_builtin_or_toml(
+        source, b, controller_from_dict, what="controller", error=ControllerError
+    )

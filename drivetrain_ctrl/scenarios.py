@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .drivetrain import INPUTS, Drivetrain
+from .loading import load_builtin_or_toml
 from .params import DrivetrainParams
 from .signals import Signal, constant, ramp, step
 from .units import kmh_to_m_s, rpm_to_rad_s
@@ -441,22 +441,4 @@ def load_scenario(source: str | Path, *, params: DrivetrainParams | None = None)
     """A built-in scenario by name (built for ``params``, default parameter set if None), or a
     scenario TOML file."""
     b = builtin_scenarios(params)
-    if isinstance(source, str) and source in b:
-        return b[source]
-    p = Path(source)
-    if not p.suffix == ".toml" or not p.exists():
-        close = difflib.get_close_matches(str(source), sorted(b), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise ScenarioError(
-            f"scenario {str(source)!r}: not a built-in scenario ({sorted(b)}) "
-            f"nor an existing .toml file{hint}"
-        )
-    with p.open("rb") as fh:
-        try:
-            d = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ScenarioError(f"{p}: invalid TOML: {exc}") from exc
-    try:
-        return scenario_from_dict(d)
-    except ScenarioError as exc:
-        raise ScenarioError(f"{exc} (in {p})") from None
+    return load_builtin_or_toml(source, b, scenario_from_dict, what="scenario", error=ScenarioError)

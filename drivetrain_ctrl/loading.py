@@ -1,0 +1,45 @@
+"""Loading a named item: a built-in by name, or a TOML file (scenarios, controllers)."""
+
+from __future__ import annotations
+
+import difflib
+import tomllib
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+__all__ = ["load_builtin_or_toml"]
+
+T = TypeVar("T")
+
+
+def load_builtin_or_toml(
+    source: str | Path,
+    builtins: Mapping[str, T],
+    from_dict: Callable[[dict[str, Any]], T],
+    *,
+    what: str,
+    error: type[ValueError],
+) -> T:
+    """``builtins[source]`` if ``source`` names a built-in, else ``from_dict`` of the TOML file
+    ``source``. Errors are ``error`` naming ``what`` (e.g. "scenario"), with a did-you-mean hint
+    for a misspelt built-in name and the file name for a bad file."""
+    if isinstance(source, str) and source in builtins:
+        return builtins[source]
+    p = Path(source)
+    if p.suffix != ".toml" or not p.exists():
+        close = difflib.get_close_matches(str(source), sorted(builtins), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise error(
+            f"{what} {str(source)!r}: not a built-in {what} ({sorted(builtins)}) "
+            f"nor an existing .toml file{hint}"
+        )
+    with p.open("rb") as fh:
+        try:
+            d = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise error(f"{p}: invalid TOML: {exc}") from exc
+    try:
+        return from_dict(d)
+    except error as exc:
+        raise error(f"{exc} (in {p})") from None
