@@ -8,7 +8,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["load_builtin_or_toml"]
+__all__ = ["load_builtin_or_toml", "load_toml_as"]
 
 T = TypeVar("T")
 
@@ -34,12 +34,20 @@ def load_builtin_or_toml(
             f"{what} {str(source)!r}: not a built-in {what} ({sorted(builtins)}) "
             f"nor an existing .toml file{hint}"
         )
-    with p.open("rb") as fh:
+    return load_toml_as(p, from_dict, error=error)
+
+
+def load_toml_as(
+    path: Path, from_dict: Callable[[dict[str, Any]], T], *, error: type[ValueError]
+) -> T:
+    """``from_dict`` of the TOML file ``path``; invalid TOML and errors of ``from_dict`` are
+    raised as ``error`` with the file name."""
+    with path.open("rb") as fh:
         try:
             d = tomllib.load(fh)
         except tomllib.TOMLDecodeError as exc:
-            raise error(f"{p}: invalid TOML: {exc}") from exc
+            raise error(f"{path}: invalid TOML: {exc}") from None
     try:
         return from_dict(d)
     except error as exc:
-        raise error(f"{exc} (in {p})") from None
+        raise error(f"{exc} (in {path})") from None

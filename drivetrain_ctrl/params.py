@@ -43,7 +43,6 @@ import dataclasses
 import difflib
 import functools
 import math
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -1073,16 +1072,9 @@ def load_params(source: str | Path) -> DrivetrainParams:
     the file), :class:`ValueError` for an unknown set name and :class:`FileNotFoundError` for a
     missing file.
     """
-    path = _resolve_source(source)
-    with path.open("rb") as fh:
-        try:
-            data = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise ParameterError(f"{path}: invalid TOML: {exc}") from None
-    try:
-        return params_from_dict(data)
-    except ParameterError as exc:
-        raise ParameterError(f"{exc} (in {path})") from None
+    from .loading import load_toml_as
+
+    return load_toml_as(_resolve_source(source), params_from_dict, error=ParameterError)
 
 
 def save_params(params: DrivetrainParams, path: str | Path) -> Path:
