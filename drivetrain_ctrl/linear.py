@@ -109,6 +109,8 @@ __all__ = [
     "judder_threshold",
     "slip_mode_poles",
     "shuffle_speed_source_threshold",
+    "VisitedMode",
+    "linearise_visited_modes",
 ]
 
 F64 = NDArray[np.float64]
@@ -1465,3 +1467,78 @@ def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -
         engine_factor=kappa,
         k13=es.k13,
     )
+
+
+@dataclass(frozen=True)
+class VisitedMode:
+    """A mode held by a simulated trajectory, linearised at the middle of its longest interval.
+
+    ``label``: ``element=mode`` pairs; ``duration_s``: total time [s] the trajectory holds it;
+    ``op``: the operating point; ``sys``: :func:`linearise` of it; ``natural_frequencies_hz``:
+    ``|p| / 2 pi`` of its oscillatory poles (Im p > 0) [Hz]; ``damping``: their damping ratios.
+    """
+
+    label: str
+    duration_s: float
+    op: OperatingPoint
+    sys: control.StateSpace
+    natural_frequencies_hz: tuple[float, ...]
+    damping: tuple[float, ...]
+
+
+def linearise_visited_modes(
+    result: Any, *, drivetrain: Drivetrain | None = None, min_duration: float = 1e-3
+) -> tuple[VisitedMode, ...]:
+    """Linearise every mode the trajectory ``result`` holds for at least ``min_duration`` [s]
+    in total (the reachable modes of that manoeuvre), each at the middle of its longest interval,
+    never across a switch. A mode is the friction modes, backlash regions and table segments
+    (pedal map, spring pieces) together. Sorted by decreasing duration."""
+    T = np.asarray(result.t)
+    if not (math.isfinite(min_duration) and min_duration >= 0):
+        raise ValueError(f"min_duration = {min_duration!r} [s]: must be >= 0")
+    keys = [tuple(int(v) for v in f) + (-1,) + tuple(int(v) for v in r)
+            for f, r in zip(result.fm, result.reg, strict=True)]  # fmt: skip
+    total: dict[tuple[int, ...], float] = {}
+    longest: dict[tuple[int, ...], tuple[float, float]] = {}
+    i = 0
+    n = T.shape[0]
+    while i < n - 1:
+        j = i
+        while j + 1 < n - 1 and keys[j + 1] == keys[i]:
+            j += 1
+        t0, t1 = float(T[i]), float(T[j + 1])
+        k = keys[i]
+        total[k] = total.get(k, 0.0) + (t1 - t0)
+        if t1 - t0 > longest.get(k, (0.0, 0.0))[1] - longest.get(k, (0.0, 0.0))[0]:
+            longest[k] = (t0, t1)
+        i = j + 1
+    out = []
+    for k, dur in sorted(total.items(), key=lambda kv: -kv[1]):
+        if dur < min_duration or k not in longest:
+            continue
+        t0, t1 = longest[k]
+        op = operating_point_from_result(result, 0.5 * (t0 + t1), drivetrain=drivetrain)
+        sys = linearise(op)
+        poles: list[complex] = (
+            [complex(q) for q in np.linalg.eigvals(np.asarray(sys.A, dtype=float))]
+            if sys.nstates
+            else []
+        )
+        osc = sorted((p for p in poles if p.imag > 1e-9), key=lambda p: abs(p))
+        segs = [
+            f"{ti.name}=segment {r}"
+            for ti, r in zip(op.model.tables, op.mode.reg, strict=True)
+            if ti.region_names is None
+        ]
+        label = ", ".join([f"{e}={m}" for e, m in op.mode_names] + segs)
+        out.append(
+            VisitedMode(
+                label=label,
+                duration_s=dur,
+                op=op,
+                sys=sys,
+                natural_frequencies_hz=tuple(float(abs(p)) / (2 * math.pi) for p in osc),
+                damping=tuple(float(-p.real / abs(p)) for p in osc),
+            )
+        )
+    return tuple(out)

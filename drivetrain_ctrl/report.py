@@ -48,6 +48,7 @@ from .linear import (
     clutch_loop,
     engine_side,
     judder_threshold,
+    linearise_visited_modes,
     locked_analysis,
     locked_trim,
     operating_point_from_result,
@@ -73,6 +74,9 @@ F64 = NDArray[np.float64]
 
 #: model kinds a report can be built on
 MODELS: tuple[str, ...] = ("reduced", "full")
+
+#: modes held for less than this [s] by the engagement run are left out of ``visited_modes``
+VISITED_MIN_S: float = 0.01
 
 #: keys present for every mode and controller in ``data["modes"]``
 MARGIN_KEYS: tuple[str, ...] = (
@@ -625,6 +629,17 @@ def build_report(
         "engagement_metrics": metrics,
         "engagement_series": _engagement_series(res, sc, dtr),
         "linear_vs_nonlinear": {"steps": comparison, "statements": statements},
+        "visited_modes": [
+            {
+                "label": v.label,
+                "duration_s": v.duration_s,
+                "t_s": v.op.t,
+                "n_states": v.sys.nstates,
+                "natural_frequencies_hz": list(v.natural_frequencies_hz),
+                "damping": list(v.damping),
+            }
+            for v in linearise_visited_modes(res, drivetrain=dtr, min_duration=VISITED_MIN_S)
+        ],
     }
     data = json_ready(data)
     text = json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
@@ -914,7 +929,26 @@ def _sections(
             f"Torque margin to breakaway of the {el}: {_fmt(b['margin'])} N m (static capacity "
             f"{_fmt(b['capacity'])} N m, carried {_fmt(b['torque'])} N m)."
         )
-    out.append((SECTIONS[5], paras, [(f"Margins, controller {cname}", rows)], ["lock"]))
+    vrows = [["mode (friction modes, regions, table segments)", "time held [s]", "natural "
+              "frequencies [Hz] (damping)"]]  # fmt: skip
+    for v in data.get("visited_modes", []):
+        fr = ", ".join(
+            f"{f:.4g} ({z:.3g})"
+            for f, z in zip(v["natural_frequencies_hz"], v["damping"], strict=True)
+        )
+        vrows.append([v["label"], _fmt(v["duration_s"]), fr or "none (no oscillatory pole)"])
+    paras.append(
+        "Every mode the engagement run holds for at least "
+        f"{VISITED_MIN_S * 1e3:g} ms, linearised at the middle of its longest interval:"
+    )
+    out.append(
+        (
+            SECTIONS[5],
+            paras,
+            [(f"Margins, controller {cname}", rows), ("Natural frequencies in every mode", vrows)],
+            ["lock"],
+        )
+    )
     # 7 step comparison
     rows = [
         [

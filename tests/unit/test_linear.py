@@ -422,3 +422,24 @@ def test_no_matplotlib_import_at_module_level():
             if isinstance(node, ast.Import | ast.ImportFrom):
                 names = [a.name for a in node.names] + [getattr(node, "module", "") or ""]
                 assert not any("matplotlib" in n for n in names), mod.__name__
+
+
+def test_every_visited_mode_is_linearised_inside_its_interval() -> None:
+    from drivetrain_ctrl.linear import linearise_visited_modes
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    sc = load_scenario("paper-start")
+    for kind in ("reduced", "full"):
+        dtr = sc.drivetrain(default_params(), kind=kind)
+        res = sc.run(dtr, controller="paper")
+        vm = linearise_visited_modes(res, drivetrain=dtr)
+        labels = [v.label for v in vm]
+        assert len(labels) == len(set(labels)) >= 3
+        assert any("clutch=slip+" in lb for lb in labels)
+        assert any("clutch=stuck" in lb for lb in labels)
+        for v in vm:
+            assert np.all(np.isfinite(np.asarray(v.sys.A)))
+            # the operating point is strictly inside an interval of that mode
+            assert v.op.t is not None and res.t[0] < v.op.t < res.t[-1]
+        locked = [v for v in vm if "clutch=stuck" in v.label and "backlash=contact+" in v.label]
+        assert locked and locked[0].natural_frequencies_hz[0] == pytest.approx(3.1, abs=0.2)
