@@ -338,25 +338,41 @@ class RootLocus:
         )
 
     def plot(self, path: str | None = None) -> Any:
-        """Poles in the complex plane, coloured by the parameter value."""
-        import matplotlib.pyplot as plt
+        """Poles in the complex plane, coloured by the parameter value, one marker per mode of the
+        operating point (legend: the clutch's mode and the elements that differ)."""
+        from matplotlib.figure import Figure
 
-        fig, ax = plt.subplots(figsize=(6, 5))
+        fig = Figure(figsize=(6, 5), layout="constrained")
+        ax = fig.subplots()
         vals = [p.value for p in self.points]
+        labels: list[str] = []
         for p in self.points:
+            lb = ", ".join(f"{e}={m}" for e, m in p.modes) or "-"
+            if lb not in labels:
+                labels.append(lb)
+        markers = "os^Dv<>p*h"
+        sc = None
+        seen: set[str] = set()
+        for p in self.points:
+            lb = ", ".join(f"{e}={m}" for e, m in p.modes) or "-"
             sc = ax.scatter(
                 [q.real for q in p.poles],
                 [q.imag for q in p.poles],
                 c=[p.value] * len(p.poles),
                 vmin=min(vals),
                 vmax=max(vals),
-                s=8,
+                s=10,
+                marker=markers[labels.index(lb) % len(markers)],
+                label=None if lb in seen else f"mode {labels.index(lb) + 1}",
             )
+            seen.add(lb)
         ax.axvline(0.0, color="k", lw=0.5)
         ax.set_xlabel("Re [1/s]")
         ax.set_ylabel("Im [rad/s]")
+        if len(labels) > 1:
+            ax.legend(loc="best", fontsize=7)
         ax.set_title(f"root locus over {self.parameter} [{self.unit}]")
-        if self.points:
+        if sc is not None:
             fig.colorbar(sc, ax=ax, label=f"{self.parameter} [{self.unit}]")
         if path is not None:
             fig.savefig(path)
