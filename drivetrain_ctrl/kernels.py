@@ -1176,19 +1176,7 @@ def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, 
             dy[ne + 1 + k] = pd[k]
 
 
-_A_TAB = np.array(
-    [
-        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [A21, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [A31, A32, 0.0, 0.0, 0.0, 0.0],
-        [A41, A42, A43, 0.0, 0.0, 0.0],
-        [A51, A52, A53, A54, 0.0, 0.0],
-        [A61, A62, A63, A64, A65, 0.0],
-        [B1, 0.0, B3, B4, B5, B6],
-    ]
-)
 _C_TAB = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
-_E_TAB = np.array([E1, 0.0, E3, E4, E5, E6, E7])
 
 
 @jit_nonrt
@@ -1220,17 +1208,50 @@ def dp5_step(  # type: ignore[no-untyped-def]
 ):
     """One Dormand-Prince step from ``y`` with ``Ks[0] = f(y)``; writes ``y1``, ``err`` and
     ``Ks[6] = f(y1)`` (first same as last). One call site of ``full_rhs`` (inlined), stages in a
-    loop: compiling seven inlined copies took minutes."""
+    loop: compiling seven inlined copies took minutes.
+
+    The energy integrals (``y[nxs:]``) do not enter any derivative, so the intermediate stage
+    states are formed for the first ``nxs`` components only and ``y1`` for all; ``err`` is written
+    for the first ``nxs`` components (the ones the error norm uses). Stage sums are written out
+    with the tableau's coefficients in the order of the generic loop (bitwise the same results)."""
     n = y.shape[0]
+    nxs = nx + n_cl_states(Cd)
     for st in range(1, 7):
-        for i in range(n):
-            acc = 0.0
-            for j in range(st):
-                acc += _A_TAB[st, j] * Ks[j, i]
-            yt[i] = y[i] + h * acc
-        if st == 6:
+        if st == 1:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A21 * Ks[0, i])
+        elif st == 2:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A31 * Ks[0, i] + A32 * Ks[1, i])
+        elif st == 3:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A41 * Ks[0, i] + A42 * Ks[1, i] + A43 * Ks[2, i])
+        elif st == 4:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (
+                    A51 * Ks[0, i] + A52 * Ks[1, i] + A53 * Ks[2, i] + A54 * Ks[3, i]
+                )
+        elif st == 5:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (
+                    A61 * Ks[0, i]
+                    + A62 * Ks[1, i]
+                    + A63 * Ks[2, i]
+                    + A64 * Ks[3, i]
+                    + A65 * Ks[4, i]
+                )
+        else:
             for i in range(n):
-                y1[i] = yt[i]
+                v = y[i] + h * (
+                    B1 * Ks[0, i]
+                    + 0.0 * Ks[1, i]
+                    + B3 * Ks[2, i]
+                    + B4 * Ks[3, i]
+                    + B5 * Ks[4, i]
+                    + B6 * Ks[5, i]
+                )
+                yt[i] = v
+                y1[i] = v
         full_rhs(
             D,
             S,
@@ -1254,11 +1275,16 @@ def dp5_step(  # type: ignore[no-untyped-def]
         )
         for i in range(n):
             Ks[st, i] = dy[i]
-    for i in range(n):
-        acc = 0.0
-        for j in range(7):
-            acc += _E_TAB[j] * Ks[j, i]
-        err[i] = h * acc
+    for i in range(nxs):
+        err[i] = h * (
+            E1 * Ks[0, i]
+            + 0.0 * Ks[1, i]
+            + E3 * Ks[2, i]
+            + E4 * Ks[3, i]
+            + E5 * Ks[4, i]
+            + E6 * Ks[5, i]
+            + E7 * Ks[6, i]
+        )
 
 
 @jit
