@@ -449,13 +449,23 @@ def guards_into(
 ) -> None:
     """:func:`guards` with a work buffer ``tau`` (n,) instead of an allocation."""
     nf = D.f_kind.shape[0]
-    n = D.M.shape[0]
     any_stuck = False
     for f in range(nf):
         if fm[f] == STUCK:
             any_stuck = True
     if any_stuck:
         forces_into(D, x, u, fm, reg, tau, tau, -1)
+    guards_given_forces(D, x, u, fm, reg, Lam, g, tau)
+
+
+@jit_inline
+def guards_given_forces(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64, tau: F64
+) -> None:
+    """:func:`guards_into` with the forces at ``(x, u)`` already in ``tau`` (read only if an
+    element is stuck)."""
+    nf = D.f_kind.shape[0]
+    n = D.M.shape[0]
     for f in range(nf):
         m = fm[f]
         i = D.f_idx[f]
@@ -506,10 +516,36 @@ def guards_into(
         g[lo + 1] = D.t_b[k, r] - a if r < D.t_nb[k] else np.inf
 
 
+_F2D = types.float64[:, ::1]
+
+
 @jit
-def _consistency(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64) -> float:
-    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
+def _fm_key(fm):  # type: ignore[no-untyped-def]
+    key = np.int64(7)
+    for f in range(fm.shape[0]):
+        key = key * np.int64(1000003) + np.int64(fm[f] + 1)
+    return key
+
+
+@jit
+def mode_matrices_cached(D, fm, pc, lc):  # type: ignore[no-untyped-def]
+    """:func:`mode_matrices` through the caches ``pc``, ``lc`` (typed dicts by friction mode;
+    the arrays returned are shared: read only)."""
+    key = _fm_key(fm)
+    if key in pc:
+        return pc[key], lc[key]
     P, Lam = mode_matrices(D, fm)
+    pc[key] = P
+    lc[key] = Lam
+    return P, Lam
+
+
+@jit
+def _consistency(  # type: ignore[no-untyped-def]
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64, pc, lc
+) -> float:
+    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
+    P, Lam = mode_matrices_cached(D, fm, pc, lc)
     tau = forces(D, x, u, fm, reg)
     a = P @ tau
     lam = Lam @ tau
@@ -535,6 +571,18 @@ def _consistency(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, cap
 
 @jit
 def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) -> int:
+    """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
+
+    See :func:`decide_modes_cached` (this creates the mode-matrix caches for one call)."""
+    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    return decide_modes_cached(D, x, u, fm, reg, tol, pc, lc)
+
+
+@jit
+def decide_modes_cached(  # type: ignore[no-untyped-def]
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float, pc, lc
+) -> int:
     """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
 
     Elements with ``|w| <= tol`` and positive capacity are decided together: of all
@@ -587,7 +635,7 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
                     ns += 1
             if ns != n_stuck:
                 continue
-            v = _consistency(D, x, u, trial, reg, cand, caps)
+            v = _consistency(D, x, u, trial, reg, cand, caps, pc, lc)
             if v == 0.0:
                 for jj in range(nc):
                     fm[idx[jj]] = trial[idx[jj]]
@@ -1213,7 +1261,9 @@ def dp5_step(  # type: ignore[no-untyped-def]
     The energy integrals (``y[nxs:]``) do not enter any derivative, so the intermediate stage
     states are formed for the first ``nxs`` components only and ``y1`` for all; ``err`` is written
     for the first ``nxs`` components (the ones the error norm uses). Stage sums are written out
-    with the tableau's coefficients in the order of the generic loop (bitwise the same results)."""
+    with the tableau's coefficients in the order of the generic loop. The second stage has weight
+    0 in the solution, the error estimate and the continuous extension: its energy components
+    (``Ks[1, nxs:]``) are neither computed nor read."""
     n = y.shape[0]
     nxs = nx + n_cl_states(Cd)
     for st in range(1, 7):
@@ -1243,12 +1293,7 @@ def dp5_step(  # type: ignore[no-untyped-def]
         else:
             for i in range(n):
                 v = y[i] + h * (
-                    B1 * Ks[0, i]
-                    + 0.0 * Ks[1, i]
-                    + B3 * Ks[2, i]
-                    + B4 * Ks[3, i]
-                    + B5 * Ks[4, i]
-                    + B6 * Ks[5, i]
+                    B1 * Ks[0, i] + B3 * Ks[2, i] + B4 * Ks[3, i] + B5 * Ks[4, i] + B6 * Ks[5, i]
                 )
                 yt[i] = v
                 y1[i] = v
@@ -1264,7 +1309,7 @@ def dp5_step(  # type: ignore[no-untyped-def]
             reg,
             P,
             nx,
-            energy,
+            energy and st != 1,
             u,
             tau,
             pd,
@@ -1278,7 +1323,6 @@ def dp5_step(  # type: ignore[no-untyped-def]
     for i in range(nxs):
         err[i] = h * (
             E1 * Ks[0, i]
-            + 0.0 * Ks[1, i]
             + E3 * Ks[2, i]
             + E4 * Ks[3, i]
             + E5 * Ks[4, i]
@@ -1337,6 +1381,20 @@ def _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, 
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
+
+
+@jit_nonrt
+def _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g, Cd, cs, svw, tau, t1, u, sv):  # type: ignore[no-untyped-def]
+    """Guards at the step end (t1, y1) from the step's last stage, which evaluated the inputs
+    ``uw``, signals ``svw`` and forces ``tau`` at exactly (t1, y1) (first same as last): the same
+    values as :func:`_guards_step` without evaluating them again. Also copies ``uw``, ``svw`` into
+    ``u``, ``sv`` (the inputs at t1, as :func:`_guards_step` leaves them)."""
+    guards_given_forces(D, y1, uw, fm, reg, Lam, g, tau)
+    cl_guards(Cd, cs, y1, nx, t1, svw, g, n_guards(D))
+    for i in range(u.shape[0]):
+        u[i] = uw[i]
+    for i in range(sv.shape[0]):
+        sv[i] = svw[i]
 
 
 @jit
@@ -1408,9 +1466,10 @@ def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):  # type: ignore[no-untype
 
 
 @jit
-def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0):  # type: ignore[no-untyped-def]
+def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc):  # type: ignore[no-untyped-def]
     """Decide plant modes and controller states together until no guard fires.
 
+    ``pc``, ``lc``: mode-matrix caches (:func:`mode_matrices_cached`).
     Returns ``(P, Lam, n_bad)``; ``n_bad`` counts decisions where no combination was consistent
     (the least inconsistent was taken) or guards still fired after 20 rounds."""
     P = np.zeros((1, 1))
@@ -1420,10 +1479,10 @@ def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
     for _rep in range(20):
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
         # only the last round counts: a first round may be inconsistent before the projection
-        n_bad = 1 if decide_modes(D, y, u, fm, reg, tol_w) < 0 else 0
+        n_bad = 1 if decide_modes_cached(D, y, u, fm, reg, tol_w, pc, lc) < 0 else 0
         cl_update(Cd, cs, y, nx, t, sv, fm)
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        P, Lam = mode_matrices(D, fm)
+        P, Lam = mode_matrices_cached(D, fm, pc, lc)
         guards(D, y, u, fm, reg, Lam, g0)
         cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
         ok = True
@@ -1526,7 +1585,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     Ts = Cd.cf[CF_TS] if Cd.ci[CI_DISC] != 0 else np.inf
     t_sample = t0 if Cd.ci[CI_DISC] != 0 else np.inf
 
-    cap = 1024
+    # room for about 4 samples per h_max (growing by doubling beyond): no copies in a typical run
+    est = 4.0 * (t_end - t0) / h_max + 64.0
+    cap = int(min(max(est, 1024.0), 65536.0))
     T = np.empty(cap)
     Y = np.empty((cap, ny))
     U = np.empty((cap, nu))
@@ -1570,7 +1631,11 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         eval_inputs(S, ua, ub, t, t_ref, sv)
         cl_sample(Cd, cs, y, sv)
         t_sample = t + Ts
-    P, Lam, nb = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    P, Lam, nb = _decide_all(
+        D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
+    )
     n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
     h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
@@ -1592,6 +1657,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     fm_old = fm.copy()
     reg_old = reg.copy()
 
+    u_fresh = False
     while t < t_end:
         if n_steps >= max_steps:
             status = MAX_STEPS
@@ -1656,7 +1722,13 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         err_old = max(en, 1e-4)
         h_next = hh * min(5.0, max(0.2, fac))
         t1 = t + hh if not hit_stop else t_stop
-        _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
+        # the last stage was evaluated at t + 1.0 * hh, y1: when that is t1 bitwise (always
+        # unless the step was cut to a stop time), its inputs and forces give the guards
+        u_fresh = t + hh == t1
+        if u_fresh:
+            _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
+        else:
+            _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
         j = _fired(g0, g1)
         if j < 0:
             t = t1
@@ -1706,7 +1778,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
             n_incons += nb
             h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
@@ -1749,7 +1821,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
             n_incons += nb
             h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
@@ -1783,7 +1855,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             R2 = np.empty((c2, nt), dtype=np.int64)
             R2[:n_rec] = RG[:n_rec]
             RG = R2
-        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+        if not (u_fresh and j < 0 and not hit_stop):
+            eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+        # else: u holds the inputs at t (from the step's last stage)
         _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
         n_rec += 1
 
