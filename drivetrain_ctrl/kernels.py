@@ -1514,13 +1514,8 @@ def _mode_key(fm, reg):  # type: ignore[no-untyped-def]
 
 
 @jit
-def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
-    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
-    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
-    key = _mode_key(fm, reg)
-    if key in cache:
-        return cache[key]
-    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+def _rho_step(J):  # type: ignore[no-untyped-def]
+    """``STABILITY_FACTOR / max |lambda(J)|`` (``inf`` for a zero spectral radius)."""
     lam = np.linalg.eigvals(
         J.astype(np.complex128)
     )  # complex: a real J may have complex eigenvalues
@@ -1529,8 +1524,100 @@ def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
         a = abs(lam[i])
         if a > rho:
             rho = a
-    h = STABILITY_FACTOR / rho if rho > 0.0 else np.inf
+    return STABILITY_FACTOR / rho if rho > 0.0 else np.inf
+
+
+@jit
+def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
+    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
+    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
+    key = _mode_key(fm, reg)
+    if key in cache:
+        return cache[key]
+    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+    h = _rho_step(J)
     cache[key] = h
+    return h
+
+
+@jit
+def _balanced_norm(J):  # type: ignore[no-untyped-def]
+    """Max row sum of ``|S^-1 J S|`` for a diagonal ``S`` of powers of 2 that balances row and
+    column norms (EISPACK ``balanc`` without permutations): an upper bound of the spectral
+    radius (the scaled matrix is similar to ``J``, exactly so in floating point)."""
+    n = J.shape[0]
+    A = J.copy()
+    for _sweep in range(50):
+        done = True
+        for i in range(n):
+            c = 0.0
+            r = 0.0
+            for j in range(n):
+                if j != i:
+                    c += abs(A[j, i])
+                    r += abs(A[i, j])
+            if c == 0.0 or r == 0.0:
+                continue
+            g = r / 2.0
+            f = 1.0
+            sm = c + r
+            while c < g:
+                f *= 2.0
+                c *= 4.0
+            g = r * 2.0
+            while c >= g:
+                f /= 2.0
+                c /= 4.0
+            if (c + r) / f < 0.95 * sm:
+                done = False
+                for j in range(n):
+                    A[i, j] /= f
+                    A[j, i] *= f
+        if done:
+            break
+    nrm = 0.0
+    for i in range(n):
+        r = 0.0
+        for j in range(n):
+            r += abs(A[i, j])
+        if r > nrm:
+            nrm = r
+    return nrm
+
+
+@jit
+def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
+    """:func:`stable_step` without the eigenvalues until they can matter.
+
+    Returns ``(h, exact)``: the bound of :func:`stable_step` if it is known for the mode
+    (``exact``), else a lower bound of it, ``STABILITY_FACTOR / ||S^-1 J S||`` (balanced norm,
+    J at the first entry of the mode as in :func:`stable_step`, kept in ``jcache``). A step not
+    longer than the lower bound is not limited by the exact bound either, so
+    :func:`stable_step_exact` is only called for longer steps: the steps are the same as with
+    :func:`stable_step`, and modes that only see short steps (chatter after events) never need
+    the eigenvalues (about 30 us each)."""
+    key = _mode_key(fm, reg)
+    if key in hcache:
+        return hcache[key], True
+    if key in lcache:
+        return lcache[key], False
+    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+    nrm = _balanced_norm(J)
+    # margin for round-off in the norm's sums and the computed eigenvalues (both ~1e-15)
+    h_lo = STABILITY_FACTOR / (nrm * (1.0 + 1e-9)) if nrm > 0.0 else np.inf
+    jcache[key] = J
+    lcache[key] = h_lo
+    return h_lo, False
+
+
+@jit
+def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
+    """The bound of :func:`stable_step` for a mode :func:`stable_step_lazy` has seen."""
+    key = _mode_key(fm, reg)
+    if key in hcache:
+        return hcache[key]
+    h = _rho_step(jcache[key])
+    hcache[key] = h
     return h
 
 
@@ -1638,7 +1725,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     )
     n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
-    h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+    jcache = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lcache = Dict.empty(key_type=types.int64, value_type=types.float64)
+    h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
     h = h_init
     full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
     Ks[0, :] = dy
@@ -1667,7 +1756,12 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             t_stop = bps[ib]
         if t_sample < t_stop:
             t_stop = t_sample
-        hh = min(h, h_max, h_stab)
+        hh = min(h, h_max)
+        if hh > h_stab and not stab_exact:
+            # longer than the lower bound: the exact stability bound is needed now
+            h_stab = stable_step_exact(fm, reg, hcache, jcache)
+            stab_exact = True
+        hh = min(hh, h_stab)
         hit_stop = hh >= t_stop - t
         if hit_stop:
             hh = t_stop - t
@@ -1781,7 +1875,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
             n_incons += nb
-            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             for e in range(n_old, n_ev):
@@ -1824,7 +1918,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
             n_incons += nb
-            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
                 status = MAX_EVENTS
