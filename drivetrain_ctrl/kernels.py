@@ -169,10 +169,13 @@ def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
 @jit_inline
 def forces_into(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64, ff: F64, ff_off: int
-) -> None:
-    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques; if
-    ``ff_off >= 0`` also each friction element's signed kinetic torque into ``ff[ff_off + f]``
-    (0 unless slipping).
+) -> float:
+    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques.
+
+    If ``ff_off >= 0`` (``ff_off = n + m``, ``ff`` of the layout of :func:`powers`) also the
+    dissipated powers into ``ff`` (bodies, couplings' dampers, friction elements: the kinetic
+    torque times ``s w``, 0 unless slipping) and returns the supplied power; else returns 0.
+    (Computed here, where the relative speeds are at hand: see :func:`rhs_into`.)
 
     Hot path: written without helper calls (each call costs reference counting of its array
     arguments, which made this function 10x slower when it was measured in development).
@@ -181,12 +184,18 @@ def forces_into(
     t_s = D.t_s
     t_o = D.t_o
     ratio = D.ratio
+    pw = ff_off >= 0
+    p_in = 0.0
     for i in range(n):
         w = x[i]
         t = -D.visc[i] * w - D.quad[i] * w * abs(w) + D.load[i]
         if D.b_uidx[i] >= 0:
             t += D.b_ugain[i] * u[D.b_uidx[i]]
+            if pw:
+                p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
         tau[i] = t
+        if pw:
+            ff[i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
     for j in range(D.l_body.shape[0]):
         b = D.l_body[j]
         kt = D.l_table[j]
@@ -195,9 +204,13 @@ def forces_into(
             r = reg[kt]
             g *= t_s[kt, r] * x[b] + t_o[kt, r]
         tau[b] += g * x[D.l_x[j]]
+        if pw:
+            p_in += g * x[D.l_x[j]] * x[b]
     for c in range(ratio.shape[0]):
         w = x[c] - ratio[c] * x[c + 1]
         T = D.damp[c] * w
+        if pw:
+            ff[n + c] = D.damp[c] * w * w
         kt = D.c_table[c]
         if kt >= 0:
             r = reg[kt]
@@ -206,7 +219,7 @@ def forces_into(
         tau[c + 1] += ratio[c] * T
     for f in range(D.f_kind.shape[0]):
         m = fm[f]
-        if ff_off >= 0:
+        if pw:
             ff[ff_off + f] = 0.0
         if m == SLIP_POS or m == SLIP_NEG:
             i = D.f_idx[f]
@@ -229,11 +242,14 @@ def forces_into(
                 F *= np.tanh(w / D.f_eps[f])
             elif m == SLIP_NEG:
                 F = -F
-            if ff_off >= 0:
-                ff[ff_off + f] = F
+            if pw:
+                # kinetic torque times s w, not |w|: the smooth extension of the mode that a
+                # stage may sample just past w = 0
+                ff[ff_off + f] = F * w
             tau[i] -= F
             if coupled:
                 tau[i + 1] += ratio[i] * F
+    return p_in
 
 
 @jit
@@ -264,7 +280,7 @@ def rhs_into(
     """
     n = D.M.shape[0]
     m = D.ratio.shape[0]
-    forces_into(D, x, u, fm, reg, tau, pd, n + m if energy else -1)
+    p_in = forces_into(D, x, u, fm, reg, tau, pd, n + m if energy else -1)
     for i in range(n):
         acc = 0.0
         for k in range(n):
@@ -275,33 +291,8 @@ def rhs_into(
     for c in range(m):
         if D.c_q[c] >= 0:
             xdot[D.c_q[c]] = x[c] - D.ratio[c] * x[c + 1]
-    p_in = 0.0
     for j in range(D.l_body.shape[0]):
         xdot[D.l_x[j]] = (u[D.l_uidx[j]] - x[D.l_x[j]]) / D.l_tau[j]
-    if not energy:
-        return 0.0
-    for i in range(n):
-        w = x[i]
-        pd[i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
-        if D.b_uidx[i] >= 0:
-            p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
-    for j in range(D.l_body.shape[0]):
-        b = D.l_body[j]
-        kt = D.l_table[j]
-        g = D.l_gain[j]
-        if kt >= 0:
-            r = reg[kt]
-            g *= D.t_s[kt, r] * x[b] + D.t_o[kt, r]
-        p_in += g * x[D.l_x[j]] * x[b]
-    for c in range(m):
-        w = x[c] - D.ratio[c] * x[c + 1]
-        pd[n + c] = D.damp[c] * w * w
-    for f in range(D.f_kind.shape[0]):
-        # kinetic torque (from forces_into) times s w, not |w|: the smooth extension of the mode
-        # that a stage may sample just past w = 0
-        i = D.f_idx[f]
-        w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
-        pd[n + m + f] *= w
     return p_in
 
 
