@@ -1396,7 +1396,7 @@ def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
-@jit
+@jit_nonrt
 def _fired(g0, g1):  # type: ignore[no-untyped-def]
     """Index of the guard that fired in a step (most negative normalised), or -1."""
     best = -1
@@ -1612,6 +1612,202 @@ def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
     return h
 
 
+#: return codes of :func:`_advance`
+ADV_DONE, ADV_MAX_STEPS, ADV_TOO_SMALL, ADV_FULL, ADV_STAB, ADV_STEP = 0, 1, 2, 3, 4, 5
+
+
+@jit_nonrt
+def _advance(  # type: ignore[no-untyped-def]
+    D,
+    S,
+    ua,
+    ub,
+    t_ref,
+    bps,
+    t_end,
+    h_max,
+    rtol,
+    atol,
+    max_steps,
+    y,
+    fm,
+    reg,
+    P,
+    Lam,
+    nx,
+    energy,
+    uw,
+    u,
+    tau,
+    taug,
+    pd,
+    Ks,
+    dy,
+    yt,
+    y1,
+    err,
+    Cd,
+    cs,
+    svw,
+    sv,
+    g0,
+    g1,
+    T,
+    Y,
+    U,
+    FM,
+    RG,
+    fs,
+    ist,
+):
+    """The step loop of :func:`simulate_kernel` within one mode, without reference counting.
+
+    Takes steps (Dormand-Prince, error control, guards at the step end) and records the accepted
+    ones until it returns a code: ``ADV_DONE`` (``t >= t_end``), ``ADV_MAX_STEPS``,
+    ``ADV_TOO_SMALL``, ``ADV_FULL`` (no room to record a step), ``ADV_STAB`` (the exact stability
+    bound is needed before the next step) or ``ADV_STEP``: an accepted step in which a guard
+    fired or that ends at a stop time, not yet taken (the caller locates the event or handles the
+    stop, as before). Scalars in ``fs`` = [t, h, err_old, h_stab, t_sample, hh, t1, h_next] and
+    ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j, hit_stop, u_fresh] (in and out).
+    """
+    t = fs[0]
+    h = fs[1]
+    err_old = fs[2]
+    h_stab = fs[3]
+    t_sample = fs[4]
+    ib = ist[0]
+    n_steps = ist[1]
+    n_rej = ist[2]
+    nfev = ist[3]
+    n_rec = ist[4]
+    stab_exact = ist[5] != 0
+    nxs = nx + n_cl_states(Cd)
+    code = ADV_DONE
+    while True:
+        if not (t < t_end):
+            code = ADV_DONE
+            break
+        if n_steps >= max_steps:
+            code = ADV_MAX_STEPS
+            break
+        if n_rec >= T.shape[0]:
+            code = ADV_FULL
+            break
+        t_stop = t_end
+        if ib < bps.shape[0] and bps[ib] < t_stop:
+            t_stop = bps[ib]
+        if t_sample < t_stop:
+            t_stop = t_sample
+        hh = min(h, h_max)
+        if hh > h_stab and not stab_exact:
+            # longer than the lower bound: the exact stability bound is needed now
+            code = ADV_STAB
+            break
+        hh = min(hh, h_stab)
+        hit_stop = hh >= t_stop - t
+        if hit_stop:
+            hh = t_stop - t
+        dp5_step(
+            D,
+            S,
+            ua,
+            ub,
+            t,
+            t_ref,
+            y,
+            hh,
+            fm,
+            reg,
+            P,
+            nx,
+            energy,
+            uw,
+            tau,
+            pd,
+            Ks,
+            dy,
+            yt,
+            y1,
+            err,
+            Cd,
+            cs,
+            svw,
+        )
+        nfev += 6
+        en = 0.0
+        for i in range(nxs):
+            a = abs(y[i])
+            b = abs(y1[i])
+            r = err[i] / (atol + rtol * (a if a > b else b))
+            en += r * r
+        en = np.sqrt(en / nxs)
+        if not (en <= 1.0):
+            n_rej += 1
+            fac = 0.9 * en ** (-0.2) if en == en else 0.2
+            h = hh * max(0.2, fac)
+            if h < 1e-14 * max(1.0, abs(t)):
+                code = ADV_TOO_SMALL
+                break
+            continue
+        n_steps += 1
+        # PI step-size control (Gustafsson)
+        if en > 0.0:
+            fac = 0.9 * en ** (-0.14) * err_old**0.08
+        else:
+            fac = 5.0
+        err_old = max(en, 1e-4)
+        h_next = hh * min(5.0, max(0.2, fac))
+        t1 = t + hh if not hit_stop else t_stop
+        # the last stage was evaluated at t + 1.0 * hh, y1: when that is t1 bitwise (always
+        # unless the step was cut to a stop time), its inputs and forces give the guards
+        u_fresh = t + hh == t1
+        if u_fresh:
+            _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
+        else:
+            _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
+        j = _fired(g0, g1)
+        if j >= 0 or hit_stop:
+            fs[5] = hh
+            fs[6] = t1
+            fs[7] = h_next
+            ist[6] = j
+            ist[7] = 1 if hit_stop else 0
+            ist[8] = 1 if u_fresh else 0
+            code = ADV_STEP
+            break
+        t = t1
+        _accept(y, y1, Ks, g0, g1)
+        h = h_next
+        # u holds the inputs at t (from the step's last stage)
+        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+        n_rec += 1
+    fs[0] = t
+    fs[1] = h
+    fs[2] = err_old
+    ist[1] = n_steps
+    ist[2] = n_rej
+    ist[3] = nfev
+    ist[4] = n_rec
+    return code
+
+
+@jit
+def _grow(T, Y, U, FM, RG, n_rec):  # type: ignore[no-untyped-def]
+    """The output arrays with twice the room, the first ``n_rec`` rows copied."""
+    c2 = 2 * T.shape[0]
+    T2 = np.empty(c2)
+    T2[:n_rec] = T[:n_rec]
+    Y2 = np.empty((c2, Y.shape[1]))
+    Y2[:n_rec] = Y[:n_rec]
+    U2 = np.empty((c2, U.shape[1]))
+    U2[:n_rec] = U[:n_rec]
+    F2 = np.empty((c2, FM.shape[1]), dtype=np.int64)
+    F2[:n_rec] = FM[:n_rec]
+    R2 = np.empty((c2, RG.shape[1]), dtype=np.int64)
+    R2[:n_rec] = RG[:n_rec]
+    return T2, Y2, U2, F2, R2
+
+
 @jit
 def simulate_kernel(  # type: ignore[no-untyped-def]
     D,
@@ -1738,40 +1934,54 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     reg_old = reg.copy()
 
     u_fresh = False
-    while t < t_end:
-        if n_steps >= max_steps:
-            status = MAX_STEPS
-            break
-        t_stop = t_end
-        if ib < bps.shape[0] and bps[ib] < t_stop:
-            t_stop = bps[ib]
-        if t_sample < t_stop:
-            t_stop = t_sample
-        hh = min(h, h_max)
-        if hh > h_stab and not stab_exact:
-            # longer than the lower bound: the exact stability bound is needed now
-            h_stab = stable_step_exact(fm, reg, hcache, jcache)
-            stab_exact = True
-        hh = min(hh, h_stab)
-        hit_stop = hh >= t_stop - t
-        if hit_stop:
-            hh = t_stop - t
-        dp5_step(
+    fs = np.zeros(8)
+    ist = np.zeros(9, dtype=np.int64)
+    pending = False  # a step taken here still to be recorded
+    need_u = False
+    while True:
+        if pending:
+            if n_rec >= T.shape[0]:
+                T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
+            if need_u:
+                eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+            # else: u holds the inputs at t (from the step's last stage)
+            _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+            n_rec += 1
+            pending = False
+        fs[0] = t
+        fs[1] = h
+        fs[2] = err_old
+        fs[3] = h_stab
+        fs[4] = t_sample
+        ist[0] = ib
+        ist[1] = n_steps
+        ist[2] = n_rej
+        ist[3] = nfev
+        ist[4] = n_rec
+        ist[5] = 1 if stab_exact else 0
+        code = _advance(
             D,
             S,
             ua,
             ub,
-            t,
             t_ref,
+            bps,
+            t_end,
+            h_max,
+            rtol,
+            atol,
+            max_steps,
             y,
-            hh,
             fm,
             reg,
             P,
+            Lam,
             nx,
             energy,
             uw,
+            u,
             tau,
+            taug,
             pd,
             Ks,
             dy,
@@ -1781,40 +1991,46 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             Cd,
             cs,
             svw,
+            sv,
+            g0,
+            g1,
+            T,
+            Y,
+            U,
+            FM,
+            RG,
+            fs,
+            ist,
         )
-        nfev += 6
-        en = 0.0
-        for i in range(nxs):
-            a = abs(y[i])
-            b = abs(y1[i])
-            r = err[i] / (atol + rtol * (a if a > b else b))
-            en += r * r
-        en = np.sqrt(en / nxs)
-        if not (en <= 1.0):
-            n_rej += 1
-            fac = 0.9 * en ** (-0.2) if en == en else 0.2
-            h = hh * max(0.2, fac)
-            if h < 1e-14 * max(1.0, abs(t)):
-                status = STEP_TOO_SMALL
-                break
+        t = fs[0]
+        h = fs[1]
+        err_old = fs[2]
+        n_steps = ist[1]
+        n_rej = ist[2]
+        nfev = ist[3]
+        n_rec = ist[4]
+        if code == ADV_DONE:
+            break
+        if code == ADV_MAX_STEPS:
+            status = MAX_STEPS
+            break
+        if code == ADV_TOO_SMALL:
+            status = STEP_TOO_SMALL
+            break
+        if code == ADV_FULL:
+            T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
             continue
-        n_steps += 1
-        # PI step-size control (Gustafsson)
-        if en > 0.0:
-            fac = 0.9 * en ** (-0.14) * err_old**0.08
-        else:
-            fac = 5.0
-        err_old = max(en, 1e-4)
-        h_next = hh * min(5.0, max(0.2, fac))
-        t1 = t + hh if not hit_stop else t_stop
-        # the last stage was evaluated at t + 1.0 * hh, y1: when that is t1 bitwise (always
-        # unless the step was cut to a stop time), its inputs and forces give the guards
-        u_fresh = t + hh == t1
-        if u_fresh:
-            _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
-        else:
-            _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
-        j = _fired(g0, g1)
+        if code == ADV_STAB:
+            h_stab = stable_step_exact(fm, reg, hcache, jcache)
+            stab_exact = True
+            continue
+        # ADV_STEP: an accepted step with an event or ending at a stop time
+        hh = fs[5]
+        t1 = fs[6]
+        h_next = fs[7]
+        j = ist[6]
+        hit_stop = ist[7] != 0
+        u_fresh = ist[8] != 0
         if j < 0:
             t = t1
             _accept(y, y1, Ks, g0, g1)
@@ -1923,28 +2139,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             if hh < h:
                 h_next = h
         h = h_next
-        if n_rec >= T.shape[0]:
-            c2 = 2 * T.shape[0]
-            T2 = np.empty(c2)
-            T2[:n_rec] = T[:n_rec]
-            T = T2
-            Y2 = np.empty((c2, ny))
-            Y2[:n_rec] = Y[:n_rec]
-            Y = Y2
-            U2 = np.empty((c2, nu))
-            U2[:n_rec] = U[:n_rec]
-            U = U2
-            F2 = np.empty((c2, nf), dtype=np.int64)
-            F2[:n_rec] = FM[:n_rec]
-            FM = F2
-            R2 = np.empty((c2, nt), dtype=np.int64)
-            R2[:n_rec] = RG[:n_rec]
-            RG = R2
-        if not (u_fresh and j < 0 and not hit_stop):
-            eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        # else: u holds the inputs at t (from the step's last stage)
-        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
-        n_rec += 1
+        pending = True
+        need_u = not (u_fresh and j < 0 and not hit_stop)
 
     n_knee = 0
     for e in range(n_ev):
