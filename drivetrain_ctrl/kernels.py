@@ -1618,6 +1618,83 @@ def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
     return h
 
 
+@jit_nonrt
+def _locate(
+    D,
+    S,
+    ua,
+    ub,
+    t,
+    t_ref,
+    y,
+    y1,
+    Ks,
+    hh,
+    rc,
+    g0,
+    g1,
+    j,
+    fm,
+    reg,
+    Lam,
+    nx,
+    u,
+    gtry,
+    Cd,
+    cs,
+    sv,
+    taug,
+    ys,
+    yhi,
+):  # type: ignore[no-untyped-def]
+    """Locate the event of a step from ``(t, y)`` of length ``hh`` in which guard ``j`` fired:
+    Illinois on the guard in theta on the continuous extension (no allocation, no NRT).
+
+    Returns ``(hi, j)``: the fraction of the step at which the first guard has fired (``yhi`` the
+    state there) and that guard (the earliest one found)."""
+    dense_coeffs(y, y1, Ks, hh, rc)
+    lo = 0.0
+    hi = 1.0
+    glo = g0[j] if g0[j] > 0.0 else 0.0
+    ghi = g1[j]
+    for i in range(y1.shape[0]):
+        yhi[i] = y1[i]
+    side = 0
+    tol_th = 1e-13 * max(1.0, abs(t)) / hh
+    for _it in range(200):
+        if hi - lo <= tol_th:
+            break
+        s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
+        margin = 0.01 * (hi - lo)
+        if not (s - lo >= margin):
+            s = lo + margin
+        if not (hi - s >= margin):
+            s = hi - margin
+        dense_eval(rc, s, ys)
+        _guards_step(
+            D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
+        )
+        jj = _fired(g0, gtry)
+        if jj >= 0:
+            if jj != j:
+                j = jj
+                glo = g0[j] if g0[j] > 0.0 else 0.0
+            hi = s
+            ghi = gtry[j]
+            for i in range(ys.shape[0]):
+                yhi[i] = ys[i]
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        else:
+            lo = s
+            glo = gtry[j]
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+    return hi, j
+
+
 #: return codes of :func:`_advance`
 ADV_DONE, ADV_MAX_STEPS, ADV_TOO_SMALL, ADV_FULL, ADV_STAB, ADV_STEP = 0, 1, 2, 3, 4, 5
 
@@ -2043,44 +2120,34 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             _accept(y, y1, Ks, g0, g1)
         else:
             # locate the event on the continuous extension: Illinois on guard j in theta
-            dense_coeffs(y, y1, Ks, hh, rc)
-            lo = 0.0
-            hi = 1.0
-            glo = g0[j] if g0[j] > 0.0 else 0.0
-            ghi = g1[j]
-            yhi[:] = y1
-            side = 0
-            tol_th = 1e-13 * max(1.0, abs(t)) / hh
-            for _it in range(200):
-                if hi - lo <= tol_th:
-                    break
-                s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
-                margin = 0.01 * (hi - lo)
-                if not (s - lo >= margin):
-                    s = lo + margin
-                if not (hi - s >= margin):
-                    s = hi - margin
-                dense_eval(rc, s, ys)
-                _guards_step(
-                    D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
-                )
-                jj = _fired(g0, gtry)
-                if jj >= 0:
-                    if jj != j:
-                        j = jj
-                        glo = g0[j] if g0[j] > 0.0 else 0.0
-                    hi = s
-                    ghi = gtry[j]
-                    yhi[:] = ys
-                    if side == -1:
-                        glo *= 0.5
-                    side = -1
-                else:
-                    lo = s
-                    glo = gtry[j]
-                    if side == 1:
-                        ghi *= 0.5
-                    side = 1
+            hi, j = _locate(
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                y1,
+                Ks,
+                hh,
+                rc,
+                g0,
+                g1,
+                j,
+                fm,
+                reg,
+                Lam,
+                nx,
+                u,
+                gtry,
+                Cd,
+                cs,
+                sv,
+                taug,
+                ys,
+                yhi,
+            )
             t = t + hi * hh
             y[:] = yhi
             fm_old[:] = fm
