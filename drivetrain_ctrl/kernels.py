@@ -169,10 +169,13 @@ def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
 @jit_inline
 def forces_into(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64, ff: F64, ff_off: int
-) -> None:
-    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques; if
-    ``ff_off >= 0`` also each friction element's signed kinetic torque into ``ff[ff_off + f]``
-    (0 unless slipping).
+) -> float:
+    """Generalised torques on the bodies [N m or N] into ``tau``, without stuck torques.
+
+    If ``ff_off >= 0`` also the dissipated powers into ``ff[ff_off:]`` (layout of
+    :func:`powers`: bodies, couplings' dampers, friction elements: the kinetic torque times
+    ``s w``, 0 unless slipping) and returns the supplied power; else returns 0.
+    (Computed here, where the relative speeds are at hand: see :func:`rhs_into`.)
 
     Hot path: written without helper calls (each call costs reference counting of its array
     arguments, which made this function 10x slower when it was measured in development).
@@ -181,12 +184,18 @@ def forces_into(
     t_s = D.t_s
     t_o = D.t_o
     ratio = D.ratio
+    pw = ff_off >= 0
+    p_in = 0.0
     for i in range(n):
         w = x[i]
         t = -D.visc[i] * w - D.quad[i] * w * abs(w) + D.load[i]
         if D.b_uidx[i] >= 0:
             t += D.b_ugain[i] * u[D.b_uidx[i]]
+            if pw:
+                p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
         tau[i] = t
+        if pw:
+            ff[ff_off + i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
     for j in range(D.l_body.shape[0]):
         b = D.l_body[j]
         kt = D.l_table[j]
@@ -195,9 +204,13 @@ def forces_into(
             r = reg[kt]
             g *= t_s[kt, r] * x[b] + t_o[kt, r]
         tau[b] += g * x[D.l_x[j]]
+        if pw:
+            p_in += g * x[D.l_x[j]] * x[b]
     for c in range(ratio.shape[0]):
         w = x[c] - ratio[c] * x[c + 1]
         T = D.damp[c] * w
+        if pw:
+            ff[ff_off + n + c] = D.damp[c] * w * w
         kt = D.c_table[c]
         if kt >= 0:
             r = reg[kt]
@@ -206,8 +219,8 @@ def forces_into(
         tau[c + 1] += ratio[c] * T
     for f in range(D.f_kind.shape[0]):
         m = fm[f]
-        if ff_off >= 0:
-            ff[ff_off + f] = 0.0
+        if pw:
+            ff[ff_off + n + ratio.shape[0] + f] = 0.0
         if m == SLIP_POS or m == SLIP_NEG:
             i = D.f_idx[f]
             coupled = D.f_kind[f] == 0
@@ -229,11 +242,14 @@ def forces_into(
                 F *= np.tanh(w / D.f_eps[f])
             elif m == SLIP_NEG:
                 F = -F
-            if ff_off >= 0:
-                ff[ff_off + f] = F
+            if pw:
+                # kinetic torque times s w, not |w|: the smooth extension of the mode that a
+                # stage may sample just past w = 0
+                ff[ff_off + n + ratio.shape[0] + f] = F * w
             tau[i] -= F
             if coupled:
                 tau[i + 1] += ratio[i] * F
+    return p_in
 
 
 @jit
@@ -251,57 +267,39 @@ def rhs_into(
     u: F64,
     fm: I64,
     reg: I64,
-    P: F64,
+    PT: F64,
     xdot: F64,
     tau: F64,
     pd: F64,
+    pd_off: int,
     energy: bool,
 ) -> float:
     """Allocation-free state derivative (the simulator's hot path).
 
-    Writes ``xdot``; with ``energy`` also the dissipated powers ``pd`` (layout of :func:`powers`,
-    stuck elements 0 since their relative speed is held at zero) and returns the supplied power.
+    ``PT``: the transpose of ``P`` (:func:`mode_matrices`), C-contiguous: the accelerations
+    ``P tau`` are summed column by column (independent, vectorisable updates instead of one
+    latency-bound dot product per row; each sum in the same order as a row-wise dot product).
+    Writes ``xdot``; with ``energy`` also the dissipated powers into ``pd[pd_off:]`` (layout of
+    :func:`powers`, stuck elements 0 since their relative speed is held at zero) and returns the
+    supplied power.
     """
     n = D.M.shape[0]
     m = D.ratio.shape[0]
-    forces_into(D, x, u, fm, reg, tau, pd, n + m if energy else -1)
+    p_in = forces_into(D, x, u, fm, reg, tau, pd, pd_off if energy else -1)
     for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            acc += P[i, k] * tau[k]
-        xdot[i] = acc
+        xdot[i] = 0.0
+    for k in range(n):
+        tk = tau[k]
+        for i in range(n):
+            xdot[i] += PT[k, i] * tk
+    for i in range(n):
         if D.b_pos[i] >= 0:
             xdot[D.b_pos[i]] = x[i]
     for c in range(m):
         if D.c_q[c] >= 0:
             xdot[D.c_q[c]] = x[c] - D.ratio[c] * x[c + 1]
-    p_in = 0.0
     for j in range(D.l_body.shape[0]):
         xdot[D.l_x[j]] = (u[D.l_uidx[j]] - x[D.l_x[j]]) / D.l_tau[j]
-    if not energy:
-        return 0.0
-    for i in range(n):
-        w = x[i]
-        pd[i] = D.visc[i] * w * w + D.quad[i] * w * w * abs(w)
-        if D.b_uidx[i] >= 0:
-            p_in += D.b_ugain[i] * u[D.b_uidx[i]] * w
-    for j in range(D.l_body.shape[0]):
-        b = D.l_body[j]
-        kt = D.l_table[j]
-        g = D.l_gain[j]
-        if kt >= 0:
-            r = reg[kt]
-            g *= D.t_s[kt, r] * x[b] + D.t_o[kt, r]
-        p_in += g * x[D.l_x[j]] * x[b]
-    for c in range(m):
-        w = x[c] - D.ratio[c] * x[c + 1]
-        pd[n + c] = D.damp[c] * w * w
-    for f in range(D.f_kind.shape[0]):
-        # kinetic torque (from forces_into) times s w, not |w|: the smooth extension of the mode
-        # that a stage may sample just past w = 0
-        i = D.f_idx[f]
-        w = x[i] - D.ratio[i] * x[i + 1] if D.f_kind[f] == 0 else x[i]
-        pd[n + m + f] *= w
     return p_in
 
 
@@ -417,7 +415,7 @@ def rhs(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, xdot: F64) -> N
     """Time derivative of the state in the current mode (``P`` from :func:`mode_matrices`)."""
     tau = np.empty(D.M.shape[0])
     pd = np.empty(0)
-    rhs_into(D, x, u, fm, reg, P, xdot, tau, pd, False)
+    rhs_into(D, x, u, fm, reg, np.ascontiguousarray(P.T), xdot, tau, pd, 0, False)
 
 
 @jit
@@ -449,13 +447,23 @@ def guards_into(
 ) -> None:
     """:func:`guards` with a work buffer ``tau`` (n,) instead of an allocation."""
     nf = D.f_kind.shape[0]
-    n = D.M.shape[0]
     any_stuck = False
     for f in range(nf):
         if fm[f] == STUCK:
             any_stuck = True
     if any_stuck:
         forces_into(D, x, u, fm, reg, tau, tau, -1)
+    guards_given_forces(D, x, u, fm, reg, Lam, g, tau)
+
+
+@jit_inline
+def guards_given_forces(
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64, tau: F64
+) -> None:
+    """:func:`guards_into` with the forces at ``(x, u)`` already in ``tau`` (read only if an
+    element is stuck)."""
+    nf = D.f_kind.shape[0]
+    n = D.M.shape[0]
     for f in range(nf):
         m = fm[f]
         i = D.f_idx[f]
@@ -506,10 +514,36 @@ def guards_into(
         g[lo + 1] = D.t_b[k, r] - a if r < D.t_nb[k] else np.inf
 
 
+_F2D = types.float64[:, ::1]
+
+
 @jit
-def _consistency(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64) -> float:
-    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
+def _fm_key(fm):  # type: ignore[no-untyped-def]
+    key = np.int64(7)
+    for f in range(fm.shape[0]):
+        key = key * np.int64(1000003) + np.int64(fm[f] + 1)
+    return key
+
+
+@jit
+def mode_matrices_cached(D, fm, pc, lc):  # type: ignore[no-untyped-def]
+    """:func:`mode_matrices` through the caches ``pc``, ``lc`` (typed dicts by friction mode;
+    the arrays returned are shared: read only)."""
+    key = _fm_key(fm)
+    if key in pc:
+        return pc[key], lc[key]
     P, Lam = mode_matrices(D, fm)
+    pc[key] = P
+    lc[key] = Lam
+    return P, Lam
+
+
+@jit
+def _consistency(  # type: ignore[no-untyped-def]
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64, pc, lc
+) -> float:
+    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
+    P, Lam = mode_matrices_cached(D, fm, pc, lc)
     tau = forces(D, x, u, fm, reg)
     a = P @ tau
     lam = Lam @ tau
@@ -535,6 +569,18 @@ def _consistency(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, cap
 
 @jit
 def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) -> int:
+    """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
+
+    See :func:`decide_modes_cached` (this creates the mode-matrix caches for one call)."""
+    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    return decide_modes_cached(D, x, u, fm, reg, tol, pc, lc)
+
+
+@jit
+def decide_modes_cached(  # type: ignore[no-untyped-def]
+    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float, pc, lc
+) -> int:
     """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
 
     Elements with ``|w| <= tol`` and positive capacity are decided together: of all
@@ -587,7 +633,7 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
                     ns += 1
             if ns != n_stuck:
                 continue
-            v = _consistency(D, x, u, trial, reg, cand, caps)
+            v = _consistency(D, x, u, trial, reg, cand, caps, pc, lc)
             if v == 0.0:
                 for jj in range(nc):
                     fm[idx[jj]] = trial[idx[jj]]
@@ -1264,35 +1310,22 @@ def eval_inputs(S, ua, ub, t, t_ref, u):  # type: ignore[no-untyped-def]
 
 
 @jit_inline
-def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """Derivative of the augmented state ``y = [x, controller states, W_in, E_diss...]``.
 
-    Hot path: no array views are made here (each view costs reference counting, which made a
-    step 5x slower); ``u``, ``tau``, ``pd``, ``sv`` are work buffers.
+    ``PT``: transposed mode matrix (see :func:`rhs_into`). Hot path: no array views are made here
+    (each view costs reference counting, which made a step 5x slower); ``u``, ``tau``, ``sv`` are
+    work buffers (``pd`` is not used: the dissipated powers go straight into ``dy``).
     """
+    ne = nx + n_cl_states(Cd)
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-    p_in = rhs_into(D, y, u, fm, reg, P, dy, tau, pd, energy)
+    p_in = rhs_into(D, y, u, fm, reg, PT, dy, tau, dy, ne + 1, energy)
     cl_derivs(Cd, cs, y, nx, t, sv, dy)
     if energy:
-        ne = nx + n_cl_states(Cd)
         dy[ne] = p_in
-        for k in range(pd.shape[0]):
-            dy[ne + 1 + k] = pd[k]
 
 
-_A_TAB = np.array(
-    [
-        [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [A21, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [A31, A32, 0.0, 0.0, 0.0, 0.0],
-        [A41, A42, A43, 0.0, 0.0, 0.0],
-        [A51, A52, A53, A54, 0.0, 0.0],
-        [A61, A62, A63, A64, A65, 0.0],
-        [B1, 0.0, B3, B4, B5, B6],
-    ]
-)
 _C_TAB = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
-_E_TAB = np.array([E1, 0.0, E3, E4, E5, E6, E7])
 
 
 @jit_nonrt
@@ -1307,7 +1340,7 @@ def dp5_step(  # type: ignore[no-untyped-def]
     h,
     fm,
     reg,
-    P,
+    PT,
     nx,
     energy,
     u,
@@ -1324,17 +1357,47 @@ def dp5_step(  # type: ignore[no-untyped-def]
 ):
     """One Dormand-Prince step from ``y`` with ``Ks[0] = f(y)``; writes ``y1``, ``err`` and
     ``Ks[6] = f(y1)`` (first same as last). One call site of ``full_rhs`` (inlined), stages in a
-    loop: compiling seven inlined copies took minutes."""
+    loop: compiling seven inlined copies took minutes.
+
+    The energy integrals (``y[nxs:]``) do not enter any derivative, so the intermediate stage
+    states are formed for the first ``nxs`` components only and ``y1`` for all; ``err`` is written
+    for the first ``nxs`` components (the ones the error norm uses). Stage sums are written out
+    with the tableau's coefficients in the order of the generic loop. The second stage has weight
+    0 in the solution, the error estimate and the continuous extension: its energy components
+    (``Ks[1, nxs:]``) are neither computed nor read."""
     n = y.shape[0]
+    nxs = nx + n_cl_states(Cd)
     for st in range(1, 7):
-        for i in range(n):
-            acc = 0.0
-            for j in range(st):
-                acc += _A_TAB[st, j] * Ks[j, i]
-            yt[i] = y[i] + h * acc
-        if st == 6:
+        if st == 1:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A21 * Ks[0, i])
+        elif st == 2:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A31 * Ks[0, i] + A32 * Ks[1, i])
+        elif st == 3:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (A41 * Ks[0, i] + A42 * Ks[1, i] + A43 * Ks[2, i])
+        elif st == 4:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (
+                    A51 * Ks[0, i] + A52 * Ks[1, i] + A53 * Ks[2, i] + A54 * Ks[3, i]
+                )
+        elif st == 5:
+            for i in range(nxs):
+                yt[i] = y[i] + h * (
+                    A61 * Ks[0, i]
+                    + A62 * Ks[1, i]
+                    + A63 * Ks[2, i]
+                    + A64 * Ks[3, i]
+                    + A65 * Ks[4, i]
+                )
+        else:
             for i in range(n):
-                y1[i] = yt[i]
+                v = y[i] + h * (
+                    B1 * Ks[0, i] + B3 * Ks[2, i] + B4 * Ks[3, i] + B5 * Ks[4, i] + B6 * Ks[5, i]
+                )
+                yt[i] = v
+                y1[i] = v
         full_rhs(
             D,
             S,
@@ -1345,9 +1408,9 @@ def dp5_step(  # type: ignore[no-untyped-def]
             yt,
             fm,
             reg,
-            P,
+            PT,
             nx,
-            energy,
+            energy and st != 1,
             u,
             tau,
             pd,
@@ -1358,17 +1421,21 @@ def dp5_step(  # type: ignore[no-untyped-def]
         )
         for i in range(n):
             Ks[st, i] = dy[i]
-    for i in range(n):
-        acc = 0.0
-        for j in range(7):
-            acc += _E_TAB[j] * Ks[j, i]
-        err[i] = h * acc
+    for i in range(nxs):
+        err[i] = h * (
+            E1 * Ks[0, i]
+            + E3 * Ks[2, i]
+            + E4 * Ks[3, i]
+            + E5 * Ks[4, i]
+            + E6 * Ks[5, i]
+            + E7 * Ks[6, i]
+        )
 
 
 @jit
-def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """:func:`full_rhs` as an ordinary call (outside the hot loop)."""
-    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, u, tau, pd, dy, Cd, cs, sv)
+    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv)
 
 
 D1, D3, D4, D5, D6, D7 = (
@@ -1417,6 +1484,20 @@ def _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, 
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
+@jit_nonrt
+def _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g, Cd, cs, svw, tau, t1, u, sv):  # type: ignore[no-untyped-def]
+    """Guards at the step end (t1, y1) from the step's last stage, which evaluated the inputs
+    ``uw``, signals ``svw`` and forces ``tau`` at exactly (t1, y1) (first same as last): the same
+    values as :func:`_guards_step` without evaluating them again. Also copies ``uw``, ``svw`` into
+    ``u``, ``sv`` (the inputs at t1, as :func:`_guards_step` leaves them)."""
+    guards_given_forces(D, y1, uw, fm, reg, Lam, g, tau)
+    cl_guards(Cd, cs, y1, nx, t1, svw, g, n_guards(D))
+    for i in range(u.shape[0]):
+        u[i] = uw[i]
+    for i in range(sv.shape[0]):
+        sv[i] = svw[i]
+
+
 @jit
 def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """Plant and controller guards at (t, y): an ordinary call (outside the per-step path)."""
@@ -1425,7 +1506,7 @@ def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
-@jit
+@jit_nonrt
 def _fired(g0, g1):  # type: ignore[no-untyped-def]
     """Index of the guard that fired in a step (most negative normalised), or -1."""
     best = -1
@@ -1486,9 +1567,10 @@ def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):  # type: ignore[no-untype
 
 
 @jit
-def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0):  # type: ignore[no-untyped-def]
+def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc):  # type: ignore[no-untyped-def]
     """Decide plant modes and controller states together until no guard fires.
 
+    ``pc``, ``lc``: mode-matrix caches (:func:`mode_matrices_cached`).
     Returns ``(P, Lam, n_bad)``; ``n_bad`` counts decisions where no combination was consistent
     (the least inconsistent was taken) or guards still fired after 20 rounds."""
     P = np.zeros((1, 1))
@@ -1498,10 +1580,10 @@ def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
     for _rep in range(20):
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
         # only the last round counts: a first round may be inconsistent before the projection
-        n_bad = 1 if decide_modes(D, y, u, fm, reg, tol_w) < 0 else 0
+        n_bad = 1 if decide_modes_cached(D, y, u, fm, reg, tol_w, pc, lc) < 0 else 0
         cl_update(Cd, cs, y, nx, t, sv, fm)
         eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        P, Lam = mode_matrices(D, fm)
+        P, Lam = mode_matrices_cached(D, fm, pc, lc)
         guards(D, y, u, fm, reg, Lam, g0)
         cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
         ok = True
@@ -1533,13 +1615,8 @@ def _mode_key(fm, reg):  # type: ignore[no-untyped-def]
 
 
 @jit
-def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
-    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
-    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
-    key = _mode_key(fm, reg)
-    if key in cache:
-        return cache[key]
-    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+def _rho_step(J):  # type: ignore[no-untyped-def]
+    """``STABILITY_FACTOR / max |lambda(J)|`` (``inf`` for a zero spectral radius)."""
     lam = np.linalg.eigvals(
         J.astype(np.complex128)
     )  # complex: a real J may have complex eigenvalues
@@ -1548,9 +1625,375 @@ def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
         a = abs(lam[i])
         if a > rho:
             rho = a
-    h = STABILITY_FACTOR / rho if rho > 0.0 else np.inf
+    return STABILITY_FACTOR / rho if rho > 0.0 else np.inf
+
+
+@jit
+def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
+    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
+    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
+    key = _mode_key(fm, reg)
+    if key in cache:
+        return cache[key]
+    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+    h = _rho_step(J)
     cache[key] = h
     return h
+
+
+@jit
+def _balanced_norm(J):  # type: ignore[no-untyped-def]
+    """Max row sum of ``|S^-1 J S|`` for a diagonal ``S`` of powers of 2 that balances row and
+    column norms (EISPACK ``balanc`` without permutations): an upper bound of the spectral
+    radius (the scaled matrix is similar to ``J``, exactly so in floating point)."""
+    n = J.shape[0]
+    A = J.copy()
+    for _sweep in range(50):
+        done = True
+        for i in range(n):
+            c = 0.0
+            r = 0.0
+            for j in range(n):
+                if j != i:
+                    c += abs(A[j, i])
+                    r += abs(A[i, j])
+            if c == 0.0 or r == 0.0:
+                continue
+            g = r / 2.0
+            f = 1.0
+            sm = c + r
+            while c < g:
+                f *= 2.0
+                c *= 4.0
+            g = r * 2.0
+            while c >= g:
+                f /= 2.0
+                c /= 4.0
+            if (c + r) / f < 0.95 * sm:
+                done = False
+                for j in range(n):
+                    A[i, j] /= f
+                    A[j, i] *= f
+        if done:
+            break
+    nrm = 0.0
+    for i in range(n):
+        r = 0.0
+        for j in range(n):
+            r += abs(A[i, j])
+        if r > nrm:
+            nrm = r
+    return nrm
+
+
+@jit
+def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
+    """:func:`stable_step` without the eigenvalues until they can matter.
+
+    Returns ``(h, exact)``: the bound of :func:`stable_step` if it is known for the mode
+    (``exact``), else a lower bound of it, ``STABILITY_FACTOR / ||S^-1 J S||`` (balanced norm,
+    J at the first entry of the mode as in :func:`stable_step`, kept in ``jcache``). A step not
+    longer than the lower bound is not limited by the exact bound either, so
+    :func:`stable_step_exact` is only called for longer steps: the steps are the same as with
+    :func:`stable_step`, and modes that only see short steps (chatter after events) never need
+    the eigenvalues (about 30 us each)."""
+    key = _mode_key(fm, reg)
+    if key in hcache:
+        return hcache[key], True
+    if key in lcache:
+        return lcache[key], False
+    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
+    nrm = _balanced_norm(J)
+    # margin for round-off in the norm's sums and the computed eigenvalues (both ~1e-15)
+    h_lo = STABILITY_FACTOR / (nrm * (1.0 + 1e-9)) if nrm > 0.0 else np.inf
+    jcache[key] = J
+    lcache[key] = h_lo
+    return h_lo, False
+
+
+@jit
+def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
+    """The bound of :func:`stable_step` for a mode :func:`stable_step_lazy` has seen."""
+    key = _mode_key(fm, reg)
+    if key in hcache:
+        return hcache[key]
+    h = _rho_step(jcache[key])
+    hcache[key] = h
+    return h
+
+
+@jit_nonrt
+def _locate(
+    D,
+    S,
+    ua,
+    ub,
+    t,
+    t_ref,
+    y,
+    y1,
+    Ks,
+    hh,
+    rc,
+    g0,
+    g1,
+    j,
+    fm,
+    reg,
+    Lam,
+    nx,
+    u,
+    gtry,
+    Cd,
+    cs,
+    sv,
+    taug,
+    ys,
+    yhi,
+):  # type: ignore[no-untyped-def]
+    """Locate the event of a step from ``(t, y)`` of length ``hh`` in which guard ``j`` fired:
+    Illinois on the guard in theta on the continuous extension (no allocation, no NRT).
+
+    Returns ``(hi, j)``: the fraction of the step at which the first guard has fired (``yhi`` the
+    state there) and that guard (the earliest one found)."""
+    dense_coeffs(y, y1, Ks, hh, rc)
+    lo = 0.0
+    hi = 1.0
+    glo = g0[j] if g0[j] > 0.0 else 0.0
+    ghi = g1[j]
+    for i in range(y1.shape[0]):
+        yhi[i] = y1[i]
+    side = 0
+    tol_th = 1e-13 * max(1.0, abs(t)) / hh
+    for _it in range(200):
+        if hi - lo <= tol_th:
+            break
+        s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
+        margin = 0.01 * (hi - lo)
+        if not (s - lo >= margin):
+            s = lo + margin
+        if not (hi - s >= margin):
+            s = hi - margin
+        dense_eval(rc, s, ys)
+        _guards_step(
+            D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
+        )
+        jj = _fired(g0, gtry)
+        if jj >= 0:
+            if jj != j:
+                j = jj
+                glo = g0[j] if g0[j] > 0.0 else 0.0
+            hi = s
+            ghi = gtry[j]
+            for i in range(ys.shape[0]):
+                yhi[i] = ys[i]
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        else:
+            lo = s
+            glo = gtry[j]
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+    return hi, j
+
+
+#: return codes of :func:`_advance`
+ADV_DONE, ADV_MAX_STEPS, ADV_TOO_SMALL, ADV_FULL, ADV_STAB, ADV_STEP = 0, 1, 2, 3, 4, 5
+
+
+@jit_nonrt
+def _advance(  # type: ignore[no-untyped-def]
+    D,
+    S,
+    ua,
+    ub,
+    t_ref,
+    bps,
+    t_end,
+    h_max,
+    rtol,
+    atol,
+    max_steps,
+    y,
+    fm,
+    reg,
+    PT,
+    Lam,
+    nx,
+    energy,
+    uw,
+    u,
+    tau,
+    taug,
+    pd,
+    Ks,
+    dy,
+    yt,
+    y1,
+    err,
+    Cd,
+    cs,
+    svw,
+    sv,
+    g0,
+    g1,
+    T,
+    Y,
+    U,
+    FM,
+    RG,
+    fs,
+    ist,
+):
+    """The step loop of :func:`simulate_kernel` within one mode, without reference counting.
+
+    Takes steps (Dormand-Prince, error control, guards at the step end) and records the accepted
+    ones until it returns a code: ``ADV_DONE`` (``t >= t_end``), ``ADV_MAX_STEPS``,
+    ``ADV_TOO_SMALL``, ``ADV_FULL`` (no room to record a step), ``ADV_STAB`` (the exact stability
+    bound is needed before the next step) or ``ADV_STEP``: an accepted step in which a guard
+    fired or that ends at a stop time, not yet taken (the caller locates the event or handles the
+    stop, as before). Scalars in ``fs`` = [t, h, err_old, h_stab, t_sample, hh, t1, h_next] and
+    ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j, hit_stop, u_fresh] (in and out).
+    """
+    t = fs[0]
+    h = fs[1]
+    err_old = fs[2]
+    h_stab = fs[3]
+    t_sample = fs[4]
+    ib = ist[0]
+    n_steps = ist[1]
+    n_rej = ist[2]
+    nfev = ist[3]
+    n_rec = ist[4]
+    stab_exact = ist[5] != 0
+    nxs = nx + n_cl_states(Cd)
+    code = ADV_DONE
+    while True:
+        if not (t < t_end):
+            code = ADV_DONE
+            break
+        if n_steps >= max_steps:
+            code = ADV_MAX_STEPS
+            break
+        if n_rec >= T.shape[0]:
+            code = ADV_FULL
+            break
+        t_stop = t_end
+        if ib < bps.shape[0] and bps[ib] < t_stop:
+            t_stop = bps[ib]
+        if t_sample < t_stop:
+            t_stop = t_sample
+        hh = min(h, h_max)
+        if hh > h_stab and not stab_exact:
+            # longer than the lower bound: the exact stability bound is needed now
+            code = ADV_STAB
+            break
+        hh = min(hh, h_stab)
+        hit_stop = hh >= t_stop - t
+        if hit_stop:
+            hh = t_stop - t
+        dp5_step(
+            D,
+            S,
+            ua,
+            ub,
+            t,
+            t_ref,
+            y,
+            hh,
+            fm,
+            reg,
+            PT,
+            nx,
+            energy,
+            uw,
+            tau,
+            pd,
+            Ks,
+            dy,
+            yt,
+            y1,
+            err,
+            Cd,
+            cs,
+            svw,
+        )
+        nfev += 6
+        en = 0.0
+        for i in range(nxs):
+            a = abs(y[i])
+            b = abs(y1[i])
+            r = err[i] / (atol + rtol * (a if a > b else b))
+            en += r * r
+        en = np.sqrt(en / nxs)
+        if not (en <= 1.0):
+            n_rej += 1
+            fac = 0.9 * en ** (-0.2) if en == en else 0.2
+            h = hh * max(0.2, fac)
+            if h < 1e-14 * max(1.0, abs(t)):
+                code = ADV_TOO_SMALL
+                break
+            continue
+        n_steps += 1
+        # PI step-size control (Gustafsson)
+        if en > 0.0:
+            fac = 0.9 * en ** (-0.14) * err_old**0.08
+        else:
+            fac = 5.0
+        err_old = max(en, 1e-4)
+        h_next = hh * min(5.0, max(0.2, fac))
+        t1 = t + hh if not hit_stop else t_stop
+        # the last stage was evaluated at t + 1.0 * hh, y1: when that is t1 bitwise (always
+        # unless the step was cut to a stop time), its inputs and forces give the guards
+        u_fresh = t + hh == t1
+        if u_fresh:
+            _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
+        else:
+            _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
+        j = _fired(g0, g1)
+        if j >= 0 or hit_stop:
+            fs[5] = hh
+            fs[6] = t1
+            fs[7] = h_next
+            ist[6] = j
+            ist[7] = 1 if hit_stop else 0
+            ist[8] = 1 if u_fresh else 0
+            code = ADV_STEP
+            break
+        t = t1
+        _accept(y, y1, Ks, g0, g1)
+        h = h_next
+        # u, sv hold the inputs and signals at t (from the step's last stage)
+        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+        U[n_rec, U.shape[1] - 1] = cl_command(Cd, cs, y, nx, t, sv)
+        n_rec += 1
+    fs[0] = t
+    fs[1] = h
+    fs[2] = err_old
+    ist[1] = n_steps
+    ist[2] = n_rej
+    ist[3] = nfev
+    ist[4] = n_rec
+    return code
+
+
+@jit
+def _grow(T, Y, U, FM, RG, n_rec):  # type: ignore[no-untyped-def]
+    """The output arrays with twice the room, the first ``n_rec`` rows copied."""
+    c2 = 2 * T.shape[0]
+    T2 = np.empty(c2)
+    T2[:n_rec] = T[:n_rec]
+    Y2 = np.empty((c2, Y.shape[1]))
+    Y2[:n_rec] = Y[:n_rec]
+    U2 = np.empty((c2, U.shape[1]))
+    U2[:n_rec] = U[:n_rec]
+    F2 = np.empty((c2, FM.shape[1]), dtype=np.int64)
+    F2[:n_rec] = FM[:n_rec]
+    R2 = np.empty((c2, RG.shape[1]), dtype=np.int64)
+    R2[:n_rec] = RG[:n_rec]
+    return T2, Y2, U2, F2, R2
 
 
 @jit
@@ -1604,7 +2047,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     Ts = Cd.cf[CF_TS] if Cd.ci[CI_DISC] != 0 else np.inf
     t_sample = t0 if Cd.ci[CI_DISC] != 0 else np.inf
 
-    cap = 1024
+    # room for about 4 samples per h_max (growing by doubling beyond): no copies in a typical run
+    est = 4.0 * (t_end - t0) / h_max + 64.0
+    cap = int(min(max(est, 1024.0), 65536.0))
     T = np.empty(cap)
     Y = np.empty((cap, ny))
     U = np.empty((cap, nu + 1))  # last column: the controller command (see cl_command)
@@ -1648,12 +2093,19 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         eval_inputs(S, ua, ub, t, t_ref, sv)
         cl_sample(Cd, cs, y, sv, t)
         t_sample = t + Ts
-    P, Lam, nb = _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0)
+    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
+    P, Lam, nb = _decide_all(
+        D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
+    )
+    PT = np.ascontiguousarray(P.T)
     n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
-    h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+    jcache = Dict.empty(key_type=types.int64, value_type=_F2D)
+    lcache = Dict.empty(key_type=types.int64, value_type=types.float64)
+    h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
     h = h_init
-    full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+    full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
     Ks[0, :] = dy
     nfev += 1
     _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)
@@ -1671,35 +2123,56 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     fm_old = fm.copy()
     reg_old = reg.copy()
 
-    while t < t_end:
-        if n_steps >= max_steps:
-            status = MAX_STEPS
-            break
-        t_stop = t_end
-        if ib < bps.shape[0] and bps[ib] < t_stop:
-            t_stop = bps[ib]
-        if t_sample < t_stop:
-            t_stop = t_sample
-        hh = min(h, h_max, h_stab)
-        hit_stop = hh >= t_stop - t
-        if hit_stop:
-            hh = t_stop - t
-        dp5_step(
+    u_fresh = False
+    fs = np.zeros(8)
+    ist = np.zeros(9, dtype=np.int64)
+    pending = False  # a step taken here still to be recorded
+    need_u = False
+    while True:
+        if pending:
+            if n_rec >= T.shape[0]:
+                T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
+            if need_u:
+                eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+            # else: u holds the inputs at t (from the step's last stage)
+            _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+            U[n_rec, U.shape[1] - 1] = cl_command(Cd, cs, y, nx, t, sv)
+            n_rec += 1
+            pending = False
+        fs[0] = t
+        fs[1] = h
+        fs[2] = err_old
+        fs[3] = h_stab
+        fs[4] = t_sample
+        ist[0] = ib
+        ist[1] = n_steps
+        ist[2] = n_rej
+        ist[3] = nfev
+        ist[4] = n_rec
+        ist[5] = 1 if stab_exact else 0
+        code = _advance(
             D,
             S,
             ua,
             ub,
-            t,
             t_ref,
+            bps,
+            t_end,
+            h_max,
+            rtol,
+            atol,
+            max_steps,
             y,
-            hh,
             fm,
             reg,
-            P,
+            PT,
+            Lam,
             nx,
             energy,
             uw,
+            u,
             tau,
+            taug,
             pd,
             Ks,
             dy,
@@ -1709,86 +2182,89 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             Cd,
             cs,
             svw,
+            sv,
+            g0,
+            g1,
+            T,
+            Y,
+            U,
+            FM,
+            RG,
+            fs,
+            ist,
         )
-        nfev += 6
-        en = 0.0
-        for i in range(nxs):
-            a = abs(y[i])
-            b = abs(y1[i])
-            r = err[i] / (atol + rtol * (a if a > b else b))
-            en += r * r
-        en = np.sqrt(en / nxs)
-        if not (en <= 1.0):
-            n_rej += 1
-            fac = 0.9 * en ** (-0.2) if en == en else 0.2
-            h = hh * max(0.2, fac)
-            if h < 1e-14 * max(1.0, abs(t)):
-                status = STEP_TOO_SMALL
-                break
+        t = fs[0]
+        h = fs[1]
+        err_old = fs[2]
+        n_steps = ist[1]
+        n_rej = ist[2]
+        nfev = ist[3]
+        n_rec = ist[4]
+        if code == ADV_DONE:
+            break
+        if code == ADV_MAX_STEPS:
+            status = MAX_STEPS
+            break
+        if code == ADV_TOO_SMALL:
+            status = STEP_TOO_SMALL
+            break
+        if code == ADV_FULL:
+            T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
             continue
-        n_steps += 1
-        # PI step-size control (Gustafsson)
-        if en > 0.0:
-            fac = 0.9 * en ** (-0.14) * err_old**0.08
-        else:
-            fac = 5.0
-        err_old = max(en, 1e-4)
-        h_next = hh * min(5.0, max(0.2, fac))
-        t1 = t + hh if not hit_stop else t_stop
-        _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
-        j = _fired(g0, g1)
+        if code == ADV_STAB:
+            h_stab = stable_step_exact(fm, reg, hcache, jcache)
+            stab_exact = True
+            continue
+        # ADV_STEP: an accepted step with an event or ending at a stop time
+        hh = fs[5]
+        t1 = fs[6]
+        h_next = fs[7]
+        j = ist[6]
+        hit_stop = ist[7] != 0
+        u_fresh = ist[8] != 0
         if j < 0:
             t = t1
             _accept(y, y1, Ks, g0, g1)
         else:
             # locate the event on the continuous extension: Illinois on guard j in theta
-            dense_coeffs(y, y1, Ks, hh, rc)
-            lo = 0.0
-            hi = 1.0
-            glo = g0[j] if g0[j] > 0.0 else 0.0
-            ghi = g1[j]
-            yhi[:] = y1
-            side = 0
-            tol_th = 1e-13 * max(1.0, abs(t)) / hh
-            for _it in range(200):
-                if hi - lo <= tol_th:
-                    break
-                s = hi - ghi * (hi - lo) / (ghi - glo) if ghi != glo else 0.5 * (lo + hi)
-                margin = 0.01 * (hi - lo)
-                if not (s - lo >= margin):
-                    s = lo + margin
-                if not (hi - s >= margin):
-                    s = hi - margin
-                dense_eval(rc, s, ys)
-                _guards_step(
-                    D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
-                )
-                jj = _fired(g0, gtry)
-                if jj >= 0:
-                    if jj != j:
-                        j = jj
-                        glo = g0[j] if g0[j] > 0.0 else 0.0
-                    hi = s
-                    ghi = gtry[j]
-                    yhi[:] = ys
-                    if side == -1:
-                        glo *= 0.5
-                    side = -1
-                else:
-                    lo = s
-                    glo = gtry[j]
-                    if side == 1:
-                        ghi *= 0.5
-                    side = 1
+            hi, j = _locate(
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                y1,
+                Ks,
+                hh,
+                rc,
+                g0,
+                g1,
+                j,
+                fm,
+                reg,
+                Lam,
+                nx,
+                u,
+                gtry,
+                Cd,
+                cs,
+                sv,
+                taug,
+                ys,
+                yhi,
+            )
             t = t + hi * hh
             y[:] = yhi
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
+            PT = np.ascontiguousarray(P.T)
             n_incons += nb
-            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             for e in range(n_old, n_ev):
@@ -1810,7 +2286,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 status = MAX_EVENTS
                 break
             full_rhs_call(
-                D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+                D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw
             )
             Ks[0, :] = dy
             nfev += 1
@@ -1828,16 +2304,17 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             fm_old[:] = fm
             reg_old[:] = reg
             P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
             )
+            PT = np.ascontiguousarray(P.T)
             n_incons += nb
-            h_stab = stable_step(D, y, u, fm, reg, P, nx, hcache)
+            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
             full_rhs_call(
-                D, S, ua, ub, t, t_ref, y, fm, reg, P, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+                D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw
             )
             Ks[0, :] = dy
             nfev += 1
@@ -1845,27 +2322,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             if hh < h:
                 h_next = h
         h = h_next
-        if n_rec >= T.shape[0]:
-            c2 = 2 * T.shape[0]
-            T2 = np.empty(c2)
-            T2[:n_rec] = T[:n_rec]
-            T = T2
-            Y2 = np.empty((c2, ny))
-            Y2[:n_rec] = Y[:n_rec]
-            Y = Y2
-            U2 = np.empty((c2, nu + 1))
-            U2[:n_rec] = U[:n_rec]
-            U = U2
-            F2 = np.empty((c2, nf), dtype=np.int64)
-            F2[:n_rec] = FM[:n_rec]
-            FM = F2
-            R2 = np.empty((c2, nt), dtype=np.int64)
-            R2[:n_rec] = RG[:n_rec]
-            RG = R2
-        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
-        U[n_rec, nu] = cl_command(Cd, cs, y, nx, t, sv)
-        n_rec += 1
+        pending = True
+        need_u = not (u_fresh and j < 0 and not hit_stop)
 
     n_knee = 0
     for e in range(n_ev):
