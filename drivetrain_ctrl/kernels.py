@@ -1245,7 +1245,7 @@ def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
             cs[CS_RL] = 1.0
 
 
-@jit
+@jit_inline
 def cl_command(Cd, cs, y, nx, t, sv):  # type: ignore[no-untyped-def]
     """The controller's command before the rate limiter and the actuator (x_r of law (6));
     NaN in open loop. ``sv`` must hold the current signal values."""
@@ -1967,7 +1967,7 @@ def _advance(  # type: ignore[no-untyped-def]
         h = h_next
         # u, sv hold the inputs and signals at t (from the step's last stage)
         _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
-        U[n_rec, U.shape[1] - 1] = cl_command(Cd, cs, y, nx, t, sv)
+        U[n_rec, U.shape[1] - 1] = np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
         n_rec += 1
     fs[0] = t
     fs[1] = h
@@ -2136,7 +2136,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
             # else: u holds the inputs at t (from the step's last stage)
             _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
-            U[n_rec, U.shape[1] - 1] = cl_command(Cd, cs, y, nx, t, sv)
+            U[n_rec, U.shape[1] - 1] = (
+                np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
+            )
             n_rec += 1
             pending = False
         fs[0] = t
