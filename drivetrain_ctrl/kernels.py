@@ -895,7 +895,7 @@ def _piece(st, sv, snk, i, t_ref):  # type: ignore[no-untyped-def]
     return sv[i, k] + slope * (t_ref - t0), slope
 
 
-@jit
+@jit_nonrt
 def set_interval(S, t_ref, ua, ub):  # type: ignore[no-untyped-def]
     """Coefficients of every input on the interval starting at ``t_ref``."""
     st, sv, snk, ssin, sns = S
@@ -986,7 +986,7 @@ def cl_error(Cd, y, sv):  # type: ignore[no-untyped-def]
     return e
 
 
-@jit
+@jit_nonrt
 def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
     """(lookup argument, value before saturation, output before rate limiter/actuator).
 
@@ -1159,7 +1159,7 @@ def cl_guards(Cd, cs, y, nx, t, sv, g, off):  # type: ignore[no-untyped-def]
         g[off + 7] = abs(cs[CS_D0]) - cf[CF_LR] * (t - cs[CS_TR])
 
 
-@jit
+@jit_nonrt
 def cl_update(Cd, cs, y, nx, t, sv, fm):  # type: ignore[no-untyped-def]
     """Set the controller's discrete state from the current values (start and events)."""
     ci = Cd.ci
@@ -1432,7 +1432,7 @@ def dp5_step(  # type: ignore[no-untyped-def]
         )
 
 
-@jit
+@jit_nonrt
 def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """:func:`full_rhs` as an ordinary call (outside the hot loop)."""
     full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv)
@@ -1521,7 +1521,7 @@ def _fired(g0, g1):  # type: ignore[no-untyped-def]
     return best
 
 
-@jit
+@jit_nonrt
 def _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev):  # type: ignore[no-untyped-def]
     """Append every changed friction mode / table region to the event arrays."""
     nf = fm.shape[0]
@@ -1604,7 +1604,7 @@ def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0
 STABILITY_FACTOR = 2.5
 
 
-@jit
+@jit_nonrt
 def _mode_key(fm, reg):  # type: ignore[no-untyped-def]
     key = np.int64(7)
     for f in range(fm.shape[0]):
@@ -1720,6 +1720,234 @@ def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
     h = _rho_step(jcache[key])
     hcache[key] = h
     return h
+
+
+# --- event decisions without reference counting -------------------------------------------------
+# The mode matrices P, P^T, Lam depend only on which friction elements are stuck: they are cached
+# in plain arrays (slot s: stuck set ``mmask[s]``; ``mst`` = [slots used, next slot to replace])
+# that functions compiled without NRT can read. Only a miss (a stuck set seen for the first time)
+# and the projection go through the ordinary (reference-counted, allocating) functions.
+
+#: return code of :func:`_dm_combos`: the mode matrices of ``trial`` are not in the cache
+DM_MISS = -2
+
+
+@jit_nonrt
+def _mm_find(fm, mmask, mst):  # type: ignore[no-untyped-def]
+    """Cache slot of the mode matrices of friction modes ``fm``, or -1."""
+    nf = fm.shape[0]
+    for s in range(mst[0]):
+        same = True
+        for f in range(nf):
+            if (fm[f] == STUCK) != (mmask[s, f] != 0):
+                same = False
+                break
+        if same:
+            return s
+    return -1
+
+
+@jit
+def _mm_insert(D, fm, mmask, mP, mPT, mL, mst):  # type: ignore[no-untyped-def]
+    """Compute the mode matrices of ``fm`` (:func:`mode_matrices`) into a cache slot (the next
+    free one, else round robin); returns the slot."""
+    K = mmask.shape[0]
+    if mst[0] < K:
+        s = mst[0]
+        mst[0] += 1
+    else:
+        s = mst[1]
+        mst[1] = (s + 1) % K
+    P, Lam = mode_matrices(D, fm)
+    for f in range(fm.shape[0]):
+        mmask[s, f] = 1 if fm[f] == STUCK else 0
+    n = P.shape[0]
+    for i in range(n):
+        for k in range(n):
+            mP[s, i, k] = P[i, k]
+            mPT[s, k, i] = P[i, k]
+    for f in range(Lam.shape[0]):
+        for k in range(n):
+            mL[s, f, k] = Lam[f, k]
+    return s
+
+
+@jit_nonrt
+def _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol, cand, caps):  # type: ignore[no-untyped-def]
+    """First part of :func:`decide_modes_cached` (after the inputs at t into ``u``): regions,
+    capacities, the modes of the elements that are not candidates; returns the number of
+    candidates (``cand``), without projecting."""
+    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+    for k in range(D.t_nb.shape[0]):
+        reg[k] = table_region(D, k, table_arg(D, k, y, u))
+    nc = 0
+    for f in range(fm.shape[0]):
+        cand[f] = 0
+        cap = capacity(D, f, u, reg)
+        caps[f] = cap
+        w = rel_speed(D, f, y)
+        if D.f_eps[f] > 0.0:
+            fm[f] = SLIP_POS  # smoothed: one smooth mode, never stuck
+        elif cap <= 0.0:
+            fm[f] = OPEN
+        elif abs(w) > tol:
+            fm[f] = SLIP_POS if w > 0 else SLIP_NEG
+        else:
+            cand[f] = 1
+            nc += 1
+    return nc
+
+
+@jit_inline
+def _consistency_nr(D, x, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyped-def]
+    """:func:`_consistency` with the forces of the trial mode in ``tau`` (no allocation)."""
+    n = tau.shape[0]
+    viol = 0.0
+    for f in range(fm.shape[0]):
+        if not cand[f]:
+            continue
+        if fm[f] == STUCK:
+            lim = D.f_static[f] * caps[f]
+            lam = 0.0
+            for k in range(n):
+                lam += Lam[f, k] * tau[k]
+            ex = abs(lam) - lim
+            if ex > 0.0:
+                viol += ex / (lim + 1e-300)
+        else:
+            i = D.f_idx[f]
+            ai = 0.0
+            for k in range(n):
+                ai += P[i, k] * tau[k]
+            if D.f_kind[f] == 0:
+                ai1 = 0.0
+                for k in range(n):
+                    ai1 += P[i + 1, k] * tau[k]
+                dw = ai - D.ratio[i] * ai1
+            else:
+                dw = ai
+            s = 1.0 if fm[f] == SLIP_POS else -1.0
+            if dw * s <= 0.0:
+                viol += 1.0 + abs(dw)
+    return viol
+
+
+@jit_nonrt
+def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst):  # type: ignore[no-untyped-def]
+    """Second part of :func:`decide_modes_cached` (after the projection): the candidates' modes.
+    Returns as it does, or ``DM_MISS`` before changing ``fm`` if a trial's mode matrices are not
+    cached (``trial`` holds that mode; call again once they are)."""
+    nf = fm.shape[0]
+    for k in range(D.t_nb.shape[0]):
+        reg[k] = table_region(D, k, table_arg(D, k, x, u))
+    j = 0
+    for f in range(nf):
+        if cand[f]:
+            idx[j] = f
+            j += 1
+    ncomb = 1
+    for _q in range(nc):
+        ncomb *= 3
+    best_code = 0
+    best_viol = np.inf
+    for f in range(nf):
+        trial[f] = fm[f]
+    for n_stuck in range(nc, -1, -1):
+        for code in range(ncomb):
+            c = code
+            ns = 0
+            for jj in range(nc):
+                d = c % 3
+                c //= 3
+                trial[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
+                if d == 0:
+                    ns += 1
+            if ns != n_stuck:
+                continue
+            s = _mm_find(trial, mmask, mst)
+            if s < 0:
+                return DM_MISS
+            forces_into(D, x, u, trial, reg, tau, tau, -1)
+            v = _consistency_nr(D, x, trial, cand, caps, mP[s], mL[s], tau)
+            if v == 0.0:
+                for jj in range(nc):
+                    fm[idx[jj]] = trial[idx[jj]]
+                return nc
+            if v < best_viol:
+                best_viol = v
+                best_code = code
+    c = best_code
+    for jj in range(nc):
+        d = c % 3
+        c //= 3
+        fm[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
+    return -1
+
+
+@jit_nonrt
+def _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm):  # type: ignore[no-untyped-def]
+    """Controller update after the plant's decision, then the inputs at t again."""
+    cl_update(Cd, cs, y, nx, t, sv, fm)
+    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+
+
+@jit_nonrt
+def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):  # type: ignore[no-untyped-def]
+    """Guards after a decision into ``g0``; True if none is violated."""
+    guards_into(D, y, u, fm, reg, Lam, g0, tau)
+    cl_guards(Cd, cs, y, nx, t, sv, g0, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
+    ok = True
+    for q in range(g0.shape[0]):
+        if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
+            ok = False
+    return ok
+
+
+@jit_inline
+def _decide_fast(  # type: ignore[no-untyped-def]
+    D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
+):
+    """:func:`_decide_all` with the array cache of mode matrices and work arrays
+    ``W = (cand, caps, idx, trial, tau)``; returns ``(slot, n_bad)`` (the mode matrices of the
+    decided mode in cache slot ``slot``)."""
+    cand, caps, idx, trial, tauw = W
+    slot = -1
+    ok = False
+    n_bad = 0
+    for _rep in range(20):
+        nc = _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol_w, cand, caps)
+        r = 0
+        if nc > 0:
+            project(D, y, fm, cand)
+            r = _dm_combos(D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mL, mst)
+            while r == DM_MISS:
+                _mm_insert(D, trial, mmask, mP, mPT, mL, mst)
+                r = _dm_combos(
+                    D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mL, mst
+                )
+        # only the last round counts: a first round may be inconsistent before the projection
+        n_bad = 1 if r < 0 else 0
+        _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm)
+        slot = _mm_find(fm, mmask, mst)
+        if slot < 0:
+            slot = _mm_insert(D, fm, mmask, mP, mPT, mL, mst)
+        ok = _dm_guards(D, y, u, fm, reg, mL[slot], g0, tauw, Cd, cs, nx, t, sv)
+        if ok:
+            break
+    if not ok:
+        n_bad = 1
+    return slot, n_bad
+
+
+@jit_inline
+def _stab_lookup(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
+    """:func:`stable_step_lazy` with the cache lookups inline (the call only for a new mode)."""
+    key = _mode_key(fm, reg)
+    if key in hcache:
+        return hcache[key], True
+    if key in lcache:
+        return lcache[key], False
+    return stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
 
 
 @jit_nonrt
@@ -2093,22 +2321,35 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         eval_inputs(S, ua, ub, t, t_ref, sv)
         cl_sample(Cd, cs, y, sv, t)
         t_sample = t + Ts
-    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
-    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
-    P, Lam, nb = _decide_all(
-        D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
+    # mode matrices by stuck set (see _mm_find): every stuck set fits for up to 10 elements
+    n_slots = 1 << min(nf, 10)
+    mmask = np.zeros((n_slots, nf), dtype=np.int64)
+    mP = np.empty((n_slots, n, n))
+    mPT = np.empty((n_slots, n, n))
+    mL = np.empty((n_slots, nf, n))
+    mst = np.zeros(2, dtype=np.int64)
+    W = (
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(nf),
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(n),
     )
-    PT = np.ascontiguousarray(P.T)
+    slot, nb = _decide_fast(
+        D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
+    )
     n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
     jcache = Dict.empty(key_type=types.int64, value_type=_F2D)
     lcache = Dict.empty(key_type=types.int64, value_type=types.float64)
-    h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
+    h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
     h = h_init
-    full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw)
+    full_rhs_call(
+        D, S, ua, ub, t, t_ref, y, fm, reg, mPT[slot], nx, energy, uw, tau, pd, dy, Cd, cs, svw
+    )
     Ks[0, :] = dy
     nfev += 1
-    _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)
+    _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, mL[slot], nx, u, g0, Cd, cs, sv, taug)
 
     T[0] = t
     Y[0] = y
@@ -2167,8 +2408,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             y,
             fm,
             reg,
-            PT,
-            Lam,
+            mPT[slot],
+            mL[slot],
             nx,
             energy,
             uw,
@@ -2246,7 +2487,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 j,
                 fm,
                 reg,
-                Lam,
+                mL[slot],
                 nx,
                 u,
                 gtry,
@@ -2261,12 +2502,34 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             y[:] = yhi
             fm_old[:] = fm
             reg_old[:] = reg
-            P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
+            slot, nb = _decide_fast(
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                nx,
+                fm,
+                reg,
+                u,
+                tol_w,
+                Cd,
+                cs,
+                sv,
+                g0,
+                W,
+                mmask,
+                mP,
+                mPT,
+                mL,
+                mst,
             )
-            PT = np.ascontiguousarray(P.T)
             n_incons += nb
-            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
+            h_stab, stab_exact = _stab_lookup(
+                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
+            )
             n_old = n_ev
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             for e in range(n_old, n_ev):
@@ -2288,7 +2551,25 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 status = MAX_EVENTS
                 break
             full_rhs_call(
-                D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                fm,
+                reg,
+                mPT[slot],
+                nx,
+                energy,
+                uw,
+                tau,
+                pd,
+                dy,
+                Cd,
+                cs,
+                svw,
             )
             Ks[0, :] = dy
             nfev += 1
@@ -2305,22 +2586,62 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
             fm_old[:] = fm
             reg_old[:] = reg
-            P, Lam, nb = _decide_all(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc
+            slot, nb = _decide_fast(
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                nx,
+                fm,
+                reg,
+                u,
+                tol_w,
+                Cd,
+                cs,
+                sv,
+                g0,
+                W,
+                mmask,
+                mP,
+                mPT,
+                mL,
+                mst,
             )
-            PT = np.ascontiguousarray(P.T)
             n_incons += nb
-            h_stab, stab_exact = stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
+            h_stab, stab_exact = _stab_lookup(
+                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
+            )
             n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
             full_rhs_call(
-                D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, uw, tau, pd, dy, Cd, cs, svw
+                D,
+                S,
+                ua,
+                ub,
+                t,
+                t_ref,
+                y,
+                fm,
+                reg,
+                mPT[slot],
+                nx,
+                energy,
+                uw,
+                tau,
+                pd,
+                dy,
+                Cd,
+                cs,
+                svw,
             )
             Ks[0, :] = dy
             nfev += 1
-            _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g0, Cd, cs, sv)
+            _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, mL[slot], nx, u, g0, Cd, cs, sv, taug)
             if hh < h:
                 h_next = h
         h = h_next
