@@ -1328,7 +1328,7 @@ def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy,
 _C_TAB = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
 
 
-@jit_nonrt
+@jit_inline
 def dp5_step(  # type: ignore[no-untyped-def]
     D,
     S,
@@ -1357,7 +1357,8 @@ def dp5_step(  # type: ignore[no-untyped-def]
 ):
     """One Dormand-Prince step from ``y`` with ``Ks[0] = f(y)``; writes ``y1``, ``err`` and
     ``Ks[6] = f(y1)`` (first same as last). One call site of ``full_rhs`` (inlined), stages in a
-    loop: compiling seven inlined copies took minutes.
+    loop: compiling seven inlined copies took minutes. Inlined into :func:`_advance` (a call passes
+    ChainData, CtrlData and the signals as some 400 flattened arguments).
 
     The energy integrals (``y[nxs:]``) do not enter any derivative, so the intermediate stage
     states are formed for the first ``nxs`` components only and ``y1`` for all; ``err`` is written
@@ -1476,22 +1477,31 @@ def dense_eval(rc, th, out):  # type: ignore[no-untyped-def]
         out[i] = rc[0, i] + th * (rc[1, i] + th1 * (rc[2, i] + th * (rc[3, i] + th1 * rc[4, i])))
 
 
-@jit_nonrt
-def _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):  # type: ignore[no-untyped-def]
-    """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT)."""
+@jit_inline
+def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):  # type: ignore[no-untyped-def]
+    """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT).
+
+    Inlined into the step loop and the event location: a call passes ChainData and CtrlData as
+    some 350 flattened arguments."""
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
-    cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
+    cl_guards(Cd, cs, y, nx, t, sv, g, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
 
 
 @jit_nonrt
+def _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):  # type: ignore[no-untyped-def]
+    """:func:`_guards_step_inl` as an ordinary call (outside the step loop)."""
+    _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau)
+
+
+@jit_inline
 def _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g, Cd, cs, svw, tau, t1, u, sv):  # type: ignore[no-untyped-def]
     """Guards at the step end (t1, y1) from the step's last stage, which evaluated the inputs
     ``uw``, signals ``svw`` and forces ``tau`` at exactly (t1, y1) (first same as last): the same
     values as :func:`_guards_step` without evaluating them again. Also copies ``uw``, ``svw`` into
     ``u``, ``sv`` (the inputs at t1, as :func:`_guards_step` leaves them)."""
     guards_given_forces(D, y1, uw, fm, reg, Lam, g, tau)
-    cl_guards(Cd, cs, y1, nx, t1, svw, g, n_guards(D))
+    cl_guards(Cd, cs, y1, nx, t1, svw, g, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
     for i in range(u.shape[0]):
         u[i] = uw[i]
     for i in range(sv.shape[0]):
@@ -1506,7 +1516,7 @@ def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  
     cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
-@jit_nonrt
+@jit_inline
 def _fired(g0, g1):  # type: ignore[no-untyped-def]
     """Index of the guard that fired in a step (most negative normalised), or -1."""
     best = -1
@@ -1542,7 +1552,7 @@ def _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_
     return n_ev
 
 
-@jit_nonrt
+@jit_inline
 def _accept(y, y1, Ks, g0, g1):  # type: ignore[no-untyped-def]
     """Take an accepted step: y <- y1, k1 <- k7 (FSAL), guards at the start <- at the end."""
     for i in range(y.shape[0]):
@@ -2003,7 +2013,7 @@ def _locate(
         if not (hi - s >= margin):
             s = hi - margin
         dense_eval(rc, s, ys)
-        _guards_step(
+        _guards_step_inl(
             D, S, ua, ub, t + s * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
         )
         jj = _fired(g0, gtry)
@@ -2179,7 +2189,7 @@ def _advance(  # type: ignore[no-untyped-def]
         if u_fresh:
             _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
         else:
-            _guards_step(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
+            _guards_step_inl(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
         j = _fired(g0, g1)
         if j >= 0 or hit_stop:
             fs[5] = hh
