@@ -986,9 +986,11 @@ def cl_error(Cd, y, sv):  # type: ignore[no-untyped-def]
     return e
 
 
-@jit_nonrt
+@jit_inline
 def cl_chain(Cd, cs, y, nx, t, e):  # type: ignore[no-untyped-def]
     """(lookup argument, value before saturation, output before rate limiter/actuator).
+
+    Inlined (called in every closed-loop derivative: a call flattens CtrlData's arrays).
 
     Before the start time ``cf[CF_TON]`` all three are the hold value ``cf[CF_HOLD]``."""
     ci = Cd.ci
@@ -1562,7 +1564,7 @@ def _accept(y, y1, Ks, g0, g1):  # type: ignore[no-untyped-def]
         g0[i] = g1[i]
 
 
-@jit_nonrt
+@jit_inline
 def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):  # type: ignore[no-untyped-def]
     """Store sample ``n_rec`` (the arrays have room for it)."""
     T[n_rec] = t
