@@ -412,10 +412,15 @@ def simulate(
     nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
     events = []
-    for te, el, a, b in zip(evt, evel, evf, evto, strict=True):
-        name, fa = _element_mode_name(model, int(el), int(a))
-        _, fb = _element_mode_name(model, int(el), int(b))
-        events.append(Event(float(te), name, fa, fb))
+    names: dict[tuple[int, int], tuple[str, str]] = {}  # (element, code) -> names, per call
+    for te, el, a, b in zip(evt.tolist(), evel.tolist(), evf.tolist(), evto.tolist(), strict=True):
+        na = names.get((el, a))
+        if na is None:
+            na = names[(el, a)] = _element_mode_name(model, el, a)
+        nb = names.get((el, b))
+        if nb is None:
+            nb = names[(el, b)] = _element_mode_name(model, el, b)
+        events.append(Event(te, na[0], na[1], nb[1]))
     stat = _STATUS.get(int(status), str(status))
     res = SimulationResult(
         model=model,
