@@ -518,135 +518,25 @@ _F2D = types.float64[:, ::1]
 
 
 @jit
-def _fm_key(fm):  # type: ignore[no-untyped-def]
-    key = np.int64(7)
-    for f in range(fm.shape[0]):
-        key = key * np.int64(1000003) + np.int64(fm[f] + 1)
-    return key
-
-
-@jit
-def mode_matrices_cached(D, fm, pc, lc):  # type: ignore[no-untyped-def]
-    """:func:`mode_matrices` through the caches ``pc``, ``lc`` (typed dicts by friction mode;
-    the arrays returned are shared: read only)."""
-    key = _fm_key(fm)
-    if key in pc:
-        return pc[key], lc[key]
-    P, Lam = mode_matrices(D, fm)
-    pc[key] = P
-    lc[key] = Lam
-    return P, Lam
-
-
-@jit
-def _consistency(  # type: ignore[no-untyped-def]
-    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, cand: I64, caps: F64, pc, lc
-) -> float:
-    """Total violation (0 = consistent) of a trial mode for the candidate elements."""
-    P, Lam = mode_matrices_cached(D, fm, pc, lc)
-    tau = forces(D, x, u, fm, reg)
-    a = P @ tau
-    lam = Lam @ tau
-    viol = 0.0
-    for f in range(fm.shape[0]):
-        if not cand[f]:
-            continue
-        if fm[f] == STUCK:
-            lim = D.f_static[f] * caps[f]
-            # no tolerance: the guard check after a decision has none either (a stuck torque a
-            # hair above capacity would re-fire the guard at once, again and again)
-            ex = abs(lam[f]) - lim
-            if ex > 0.0:
-                viol += ex / (lim + 1e-300)
-        else:
-            i = D.f_idx[f]
-            dw = a[i] - D.ratio[i] * a[i + 1] if D.f_kind[f] == 0 else a[i]
-            s = 1.0 if fm[f] == SLIP_POS else -1.0
-            if dw * s <= 0.0:
-                viol += 1.0 + abs(dw)
-    return viol
-
-
-@jit
 def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) -> int:
-    """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
-
-    See :func:`decide_modes_cached` (this creates the mode-matrix caches for one call)."""
-    pc = Dict.empty(key_type=types.int64, value_type=_F2D)
-    lc = Dict.empty(key_type=types.int64, value_type=_F2D)
-    return decide_modes_cached(D, x, u, fm, reg, tol, pc, lc)
-
-
-@jit
-def decide_modes_cached(  # type: ignore[no-untyped-def]
-    D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float, pc, lc
-) -> int:
     """Choose the consistent mode at an event; updates ``fm``, ``reg`` and projects ``x``.
 
     Elements with ``|w| <= tol`` and positive capacity are decided together: of all
     stuck / slip+ / slip- combinations the consistent one with the most elements stuck is taken
     (stuck torques within static capacity, slip directions agreeing with the accelerations).
     Returns the number of candidates (or ``-1`` if no combination was consistent and the least
-    inconsistent one was taken).
+    inconsistent one was taken). The simulator makes the same decision through the same functions
+    (:func:`_dm_classify_core`, :func:`project`, :func:`_dm_combos`) with caches kept over the run.
     """
-    nf = fm.shape[0]
-    update_regions(D, x, u, reg)
-    cand = np.zeros(nf, dtype=np.int64)
-    caps = np.zeros(nf)
-    nc = 0
-    for f in range(nf):
-        cap = capacity(D, f, u, reg)
-        caps[f] = cap
-        w = rel_speed(D, f, x)
-        if D.f_eps[f] > 0.0:
-            fm[f] = SLIP_POS  # smoothed: one smooth mode, never stuck
-        elif cap <= 0.0:
-            fm[f] = OPEN
-        elif abs(w) > tol:
-            fm[f] = SLIP_POS if w > 0 else SLIP_NEG
-        else:
-            cand[f] = 1
-            nc += 1
+    mmask, mP, mPT, mL, mst = _mm_alloc(D)
+    cand, caps, idx, trial, tau = _dm_work(D)
+    nc = _dm_classify_core(D, x, u, fm, reg, tol, cand, caps)
     if nc == 0:
         return 0
     project(D, x, fm, cand)
-    update_regions(D, x, u, reg)
-    idx = np.empty(nc, dtype=np.int64)
-    j = 0
-    for f in range(nf):
-        if cand[f]:
-            idx[j] = f
-            j += 1
-    ncomb = 3**nc
-    best_code = 0
-    best_viol = np.inf
-    trial = fm.copy()
-    for n_stuck in range(nc, -1, -1):
-        for code in range(ncomb):
-            c = code
-            ns = 0
-            for jj in range(nc):
-                d = c % 3
-                c //= 3
-                trial[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
-                if d == 0:
-                    ns += 1
-            if ns != n_stuck:
-                continue
-            v = _consistency(D, x, u, trial, reg, cand, caps, pc, lc)
-            if v == 0.0:
-                for jj in range(nc):
-                    fm[idx[jj]] = trial[idx[jj]]
-                return nc
-            if v < best_viol:
-                best_viol = v
-                best_code = code
-    c = best_code
-    for jj in range(nc):
-        d = c % 3
-        c //= 3
-        fm[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
-    return -1
+    return _dm_combos_all(
+        D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mPT, mL, mst
+    )
 
 
 @jit
@@ -1510,14 +1400,6 @@ def _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g, Cd, cs, svw, tau, t1, u, 
         sv[i] = svw[i]
 
 
-@jit
-def _guards_at(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv):  # type: ignore[no-untyped-def]
-    """Plant and controller guards at (t, y): an ordinary call (outside the per-step path)."""
-    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-    guards(D, y, u, fm, reg, Lam, g)
-    cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
-
-
 @jit_inline
 def _fired(g0, g1):  # type: ignore[no-untyped-def]
     """Index of the guard that fired in a step (most negative normalised), or -1."""
@@ -1578,37 +1460,6 @@ def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):  # type: ignore[no-untype
         RG[n_rec, i] = reg[i]
 
 
-@jit
-def _decide_all(D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, pc, lc):  # type: ignore[no-untyped-def]
-    """Decide plant modes and controller states together until no guard fires.
-
-    ``pc``, ``lc``: mode-matrix caches (:func:`mode_matrices_cached`).
-    Returns ``(P, Lam, n_bad)``; ``n_bad`` counts decisions where no combination was consistent
-    (the least inconsistent was taken) or guards still fired after 20 rounds."""
-    P = np.zeros((1, 1))
-    Lam = np.zeros((1, 1))
-    ok = False
-    n_bad = 0
-    for _rep in range(20):
-        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        # only the last round counts: a first round may be inconsistent before the projection
-        n_bad = 1 if decide_modes_cached(D, y, u, fm, reg, tol_w, pc, lc) < 0 else 0
-        cl_update(Cd, cs, y, nx, t, sv, fm)
-        eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-        P, Lam = mode_matrices_cached(D, fm, pc, lc)
-        guards(D, y, u, fm, reg, Lam, g0)
-        cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
-        ok = True
-        for q in range(g0.shape[0]):
-            if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
-                ok = False
-        if ok:
-            break
-    if not ok:
-        n_bad = 1
-    return P, Lam, n_bad
-
-
 #: |lambda| h of the fastest mode allowed per step: inside Dormand-Prince 5(4)'s stability region
 #: (which reaches about 3.3 on the negative real axis and beyond 3 on the imaginary axis) with a
 #: margin, so that a loose tolerance cannot let a stiff, lightly damped mode (the gear mesh) grow
@@ -1638,19 +1489,6 @@ def _rho_step(J):  # type: ignore[no-untyped-def]
         if a > rho:
             rho = a
     return STABILITY_FACTOR / rho if rho > 0.0 else np.inf
-
-
-@jit
-def stable_step(D, y, u, fm, reg, P, nx, cache):  # type: ignore[no-untyped-def]
-    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region
-    (``STABILITY_FACTOR / max |lambda(J)|``; cached per mode and table region)."""
-    key = _mode_key(fm, reg)
-    if key in cache:
-        return cache[key]
-    J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
-    h = _rho_step(J)
-    cache[key] = h
-    return h
 
 
 @jit
@@ -1700,15 +1538,15 @@ def _balanced_norm(J):  # type: ignore[no-untyped-def]
 
 @jit
 def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
-    """:func:`stable_step` without the eigenvalues until they can matter.
+    """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region,
+    ``STABILITY_FACTOR / max |lambda(J)|`` (J at the first entry of the mode; cached per mode and
+    table region), without the eigenvalues until they can matter.
 
-    Returns ``(h, exact)``: the bound of :func:`stable_step` if it is known for the mode
-    (``exact``), else a lower bound of it, ``STABILITY_FACTOR / ||S^-1 J S||`` (balanced norm,
-    J at the first entry of the mode as in :func:`stable_step`, kept in ``jcache``). A step not
-    longer than the lower bound is not limited by the exact bound either, so
-    :func:`stable_step_exact` is only called for longer steps: the steps are the same as with
-    :func:`stable_step`, and modes that only see short steps (chatter after events) never need
-    the eigenvalues (about 30 us each)."""
+    Returns ``(h, exact)``: the exact bound if it is known for the mode (``exact``), else a lower
+    bound of it, ``STABILITY_FACTOR / ||S^-1 J S||`` (balanced norm; J kept in ``jcache``). A step
+    not longer than the lower bound is not limited by the exact bound either, so
+    :func:`stable_step_exact` is only called for longer steps, and modes that only see short
+    steps (chatter after events) never need the eigenvalues."""
     key = _mode_key(fm, reg)
     if key in hcache:
         return hcache[key], True
@@ -1725,7 +1563,7 @@ def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: 
 
 @jit
 def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
-    """The bound of :func:`stable_step` for a mode :func:`stable_step_lazy` has seen."""
+    """The exact bound of :func:`stable_step_lazy` for a mode it has seen (eigenvalues of J)."""
     key = _mode_key(fm, reg)
     if key in hcache:
         return hcache[key]
@@ -1784,12 +1622,47 @@ def _mm_insert(D, fm, mmask, mP, mPT, mL, mst):  # type: ignore[no-untyped-def]
     return s
 
 
+@jit
+def _mm_alloc(D):  # type: ignore[no-untyped-def]
+    """Empty mode-matrix cache ``(mmask, mP, mPT, mL, mst)`` (see :func:`_mm_find`): every stuck
+    set fits for up to 10 friction elements."""
+    n = D.M.shape[0]
+    nf = D.f_kind.shape[0]
+    n_slots = 1 << min(nf, 10)
+    return (
+        np.zeros((n_slots, nf), dtype=np.int64),
+        np.empty((n_slots, n, n)),
+        np.empty((n_slots, n, n)),
+        np.empty((n_slots, nf, n)),
+        np.zeros(2, dtype=np.int64),
+    )
+
+
+@jit
+def _dm_work(D):  # type: ignore[no-untyped-def]
+    """Work arrays ``(cand, caps, idx, trial, tau)`` of a mode decision."""
+    nf = D.f_kind.shape[0]
+    return (
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(nf),
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(nf, dtype=np.int64),
+        np.zeros(D.M.shape[0]),
+    )
+
+
 @jit_nonrt
 def _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol, cand, caps):  # type: ignore[no-untyped-def]
-    """First part of :func:`decide_modes_cached` (after the inputs at t into ``u``): regions,
-    capacities, the modes of the elements that are not candidates; returns the number of
-    candidates (``cand``), without projecting."""
+    """The inputs at t into ``u``, then :func:`_dm_classify_core`."""
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+    return _dm_classify_core(D, y, u, fm, reg, tol, cand, caps)
+
+
+@jit_nonrt
+def _dm_classify_core(D, y, u, fm, reg, tol, cand, caps):  # type: ignore[no-untyped-def]
+    """First part of a mode decision: regions, capacities, the modes of the elements that are
+    not candidates (``|w| > tol``, no capacity, smoothed); returns the number of candidates
+    (``cand``), without projecting."""
     for k in range(D.t_nb.shape[0]):
         reg[k] = table_region(D, k, table_arg(D, k, y, u))
     nc = 0
@@ -1812,7 +1685,9 @@ def _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol, can
 
 @jit_inline
 def _consistency_nr(D, x, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyped-def]
-    """:func:`_consistency` with the forces of the trial mode in ``tau`` (no allocation)."""
+    """Total violation (0 = consistent) of trial mode ``fm`` for the candidate elements: stuck
+    torques beyond static capacity, slip directions against the accelerations; from the forces
+    of the trial mode in ``tau`` (no allocation)."""
     n = tau.shape[0]
     viol = 0.0
     for f in range(fm.shape[0]):
@@ -1846,8 +1721,8 @@ def _consistency_nr(D, x, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyp
 
 @jit_nonrt
 def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst):  # type: ignore[no-untyped-def]
-    """Second part of :func:`decide_modes_cached` (after the projection): the candidates' modes.
-    Returns as it does, or ``DM_MISS`` before changing ``fm`` if a trial's mode matrices are not
+    """Second part of a mode decision (after the projection): the candidates' modes. Returns as
+    :func:`decide_modes` does, or ``DM_MISS`` before changing ``fm`` if a trial's mode matrices are not
     cached (``trial`` holds that mode; call again once they are)."""
     nf = fm.shape[0]
     for k in range(D.t_nb.shape[0]):
@@ -1896,6 +1771,16 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
     return -1
 
 
+@jit_inline
+def _dm_combos_all(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mPT, mL, mst):  # type: ignore[no-untyped-def]
+    """:func:`_dm_combos`, filling the mode-matrix cache on a miss."""
+    r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst)
+    while r == DM_MISS:
+        _mm_insert(D, trial, mmask, mP, mPT, mL, mst)
+        r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst)
+    return r
+
+
 @jit_nonrt
 def _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm):  # type: ignore[no-untyped-def]
     """Controller update after the plant's decision, then the inputs at t again."""
@@ -1919,9 +1804,11 @@ def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):  # type: igno
 def _decide_fast(  # type: ignore[no-untyped-def]
     D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
 ):
-    """:func:`_decide_all` with the array cache of mode matrices and work arrays
-    ``W = (cand, caps, idx, trial, tau)``; returns ``(slot, n_bad)`` (the mode matrices of the
-    decided mode in cache slot ``slot``)."""
+    """Decide plant modes (as :func:`decide_modes`) and controller states together until no guard
+    fires, with the array cache of mode matrices and work arrays ``W = (cand, caps, idx, trial,
+    tau)``. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in cache slot
+    ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was taken)
+    or guards still fired after 20 rounds."""
     cand, caps, idx, trial, tauw = W
     slot = -1
     ok = False
@@ -1931,12 +1818,9 @@ def _decide_fast(  # type: ignore[no-untyped-def]
         r = 0
         if nc > 0:
             project(D, y, fm, cand)
-            r = _dm_combos(D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mL, mst)
-            while r == DM_MISS:
-                _mm_insert(D, trial, mmask, mP, mPT, mL, mst)
-                r = _dm_combos(
-                    D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mL, mst
-                )
+            r = _dm_combos_all(
+                D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mPT, mL, mst
+            )
         # only the last round counts: a first round may be inconsistent before the projection
         n_bad = 1 if r < 0 else 0
         _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm)
@@ -2219,6 +2103,30 @@ def _advance(  # type: ignore[no-untyped-def]
     return code
 
 
+@jit_inline
+def _redecide(  # type: ignore[no-untyped-def]
+    D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0, W, MM,
+    SC, EV, n_ev,
+):  # fmt: skip
+    """At an event or a stop: decide the modes (:func:`_decide_fast`), look up the mode's
+    stability bound and append the mode changes to the event list. ``MM = (mmask, mP, mPT, mL,
+    mst)`` mode-matrix cache, ``SC = (hcache, jcache, lcache)`` stability-bound caches, ``EV =
+    (ev_t, ev_el, ev_from, ev_to)`` event list (tuples: CPython passes a call of more than 30
+    arguments as ``*args``, which numba cannot inline). Returns ``(slot, n_bad, h_stab,
+    stab_exact, n_ev)``."""
+    mmask, mP, mPT, mL, mst = MM
+    hcache, jcache, lcache = SC
+    ev_t, ev_el, ev_from, ev_to = EV
+    fm_old[:] = fm
+    reg_old[:] = reg
+    slot, nb = _decide_fast(
+        D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
+    )
+    h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
+    n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
+    return slot, nb, h_stab, stab_exact, n_ev
+
+
 @jit
 def _grow(T, Y, U, FM, RG, n_rec):  # type: ignore[no-untyped-def]
     """The output arrays with twice the room, the first ``n_rec`` rows copied."""
@@ -2333,20 +2241,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         eval_inputs(S, ua, ub, t, t_ref, sv)
         cl_sample(Cd, cs, y, sv, t)
         t_sample = t + Ts
-    # mode matrices by stuck set (see _mm_find): every stuck set fits for up to 10 elements
-    n_slots = 1 << min(nf, 10)
-    mmask = np.zeros((n_slots, nf), dtype=np.int64)
-    mP = np.empty((n_slots, n, n))
-    mPT = np.empty((n_slots, n, n))
-    mL = np.empty((n_slots, nf, n))
-    mst = np.zeros(2, dtype=np.int64)
-    W = (
-        np.zeros(nf, dtype=np.int64),
-        np.zeros(nf),
-        np.zeros(nf, dtype=np.int64),
-        np.zeros(nf, dtype=np.int64),
-        np.zeros(n),
-    )
+    mmask, mP, mPT, mL, mst = _mm_alloc(D)
+    W = _dm_work(D)
     slot, nb = _decide_fast(
         D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
     )
@@ -2512,38 +2408,13 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             )
             t = t + hi * hh
             y[:] = yhi
-            fm_old[:] = fm
-            reg_old[:] = reg
-            slot, nb = _decide_fast(
-                D,
-                S,
-                ua,
-                ub,
-                t,
-                t_ref,
-                y,
-                nx,
-                fm,
-                reg,
-                u,
-                tol_w,
-                Cd,
-                cs,
-                sv,
-                g0,
-                W,
-                mmask,
-                mP,
-                mPT,
-                mL,
-                mst,
-            )
-            n_incons += nb
-            h_stab, stab_exact = _stab_lookup(
-                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
-            )
             n_old = n_ev
-            n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
+            slot, nb, h_stab, stab_exact, n_ev = _redecide(
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
+                W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
+                (ev_t, ev_el, ev_from, ev_to), n_ev,
+            )  # fmt: skip
+            n_incons += nb
             for e in range(n_old, n_ev):
                 zeno_ring[zeno_pos] = t
                 zeno_pos = (zeno_pos + 1) % zeno_count
@@ -2596,37 +2467,12 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 eval_inputs(S, ua, ub, t, t_ref, sv)
                 cl_sample(Cd, cs, y, sv, t)
                 t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
-            fm_old[:] = fm
-            reg_old[:] = reg
-            slot, nb = _decide_fast(
-                D,
-                S,
-                ua,
-                ub,
-                t,
-                t_ref,
-                y,
-                nx,
-                fm,
-                reg,
-                u,
-                tol_w,
-                Cd,
-                cs,
-                sv,
-                g0,
-                W,
-                mmask,
-                mP,
-                mPT,
-                mL,
-                mst,
-            )
+            slot, nb, h_stab, stab_exact, n_ev = _redecide(
+                D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
+                W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
+                (ev_t, ev_el, ev_from, ev_to), n_ev,
+            )  # fmt: skip
             n_incons += nb
-            h_stab, stab_exact = _stab_lookup(
-                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
-            )
-            n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
