@@ -331,6 +331,10 @@ def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:
     """A built-in controller by name, a controller TOML file, or a spec (returned as is)."""
     if isinstance(source, ControllerSpec):
         return source
+    if not isinstance(source, str | Path):
+        raise ControllerError(
+            f"controller = {source!r}: give a built-in name, a .toml path or a ControllerSpec"
+        )
     b = builtin_controllers()
     return load_builtin_or_toml(
         source, b, controller_from_dict, what="controller", error=ControllerError

@@ -250,6 +250,13 @@ def filtered_jerk(
     """
     from scipy import signal
 
+    for nm, v in (("cutoff_hz", cutoff_hz), ("fs_hz", fs_hz)):
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+            raise ValueError(f"filtered_jerk: {nm} = {v!r} [Hz]: must be a finite number > 0")
+    if not cutoff_hz < fs_hz / 2:
+        raise ValueError(
+            f"filtered_jerk: cutoff_hz = {cutoff_hz!r} must be below half of fs_hz = {fs_hz!r}"
+        )
     grid = np.arange(float(t[0]), float(t[-1]), 1.0 / fs_hz)
     a = np.interp(grid, t, accel)
     sos = signal.butter(2, cutoff_hz, btype="low", fs=fs_hz, output="sos")
@@ -361,6 +368,14 @@ def engagement_metrics(
     None); ``clutch`` names the clutch friction element. Figures whose state or element does not
     exist are None.
     """
+    if start is not None and (
+        isinstance(start, bool) or not isinstance(start, int | float) or not math.isfinite(start)
+    ):
+        raise ValueError(f"engagement_metrics: start = {start!r} [s]: must be a finite number")
+    if reference is not None and not callable(reference):
+        raise TypeError(
+            f"engagement_metrics: reference = {reference!r}: must be a Signal (callable of t [s])"
+        )
     model = res.model
     names = model.state_names
     out: dict[str, Any] = dict.fromkeys(METRIC_KEYS)

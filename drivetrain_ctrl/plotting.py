@@ -336,6 +336,12 @@ def plot_engagement(
     from matplotlib.figure import Figure
 
     ncol = len(runs)
+    if ncol == 0:
+        raise ValueError("plot_engagement: runs is empty; give (label, SimulationResult) pairs")
+    if lockups is not None and len(lockups) != ncol:
+        raise ValueError(
+            f"plot_engagement: lockups has {len(lockups)} entries for {ncol} runs (one per run)"
+        )
     fig = Figure(figsize=(5.2 * ncol, 9.0), layout="constrained")
     axs = fig.subplots(4, ncol, sharex=True, squeeze=False)
     for j, (label, res) in enumerate(runs):

@@ -323,6 +323,10 @@ def idle_throttle(params: DrivetrainParams, omega: float) -> float:
 
     Engine torque = engine friction: ``K theta = b1 omega + c1`` (linear torque model, eq. (1)) or
     ``theta C_max(omega) = b1 omega + c1`` (map model)."""
+    if isinstance(omega, bool) or not isinstance(omega, int | float) or not math.isfinite(omega):
+        raise ScenarioError(f"idle_throttle: omega = {omega!r} [rad/s]: must be a finite number")
+    if omega <= 0:
+        raise ScenarioError(f"idle_throttle: omega = {omega!r} [rad/s]: must be > 0")
     e = params.engine
     loss = e.b1 * omega + e.c1
     if e.torque_model == "map" and e.full_load_curve is not None:

@@ -323,3 +323,30 @@ def test_closed_loop_scenario_round_trips_through_toml(tmp_path) -> None:  # typ
     )
     with pytest.raises(ScenarioError, match="strat_s.*did you mean 'start_s'"):
         load_scenario(str(f))
+
+
+def test_new_entry_points_name_the_bad_argument() -> None:
+    from drivetrain_ctrl.metrics import filtered_jerk
+    from drivetrain_ctrl.plotting import plot_engagement
+
+    res, _ = _run("reduced", "paper", t_end=0.6)
+    dt = SC.drivetrain(P, kind="reduced")
+    with pytest.raises(ValueError, match="start = nan"):
+        engagement_metrics(res, dt, start=float("nan"))
+    with pytest.raises(TypeError, match="reference"):
+        engagement_metrics(res, dt, reference=3.0)
+    t = np.linspace(0.0, 1.0, 101)
+    with pytest.raises(ValueError, match="cutoff_hz"):
+        filtered_jerk(t, t, cutoff_hz=600.0)
+    with pytest.raises(ValueError, match="fs_hz"):
+        filtered_jerk(t, t, fs_hz=-1.0)
+    with pytest.raises(ScenarioError, match="omega"):
+        idle_throttle(P, float("inf"))
+    with pytest.raises(ScenarioError, match="omega"):
+        idle_throttle(P, -10.0)
+    with pytest.raises(ControllerError, match="controller = 3"):
+        load_controller(3)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="runs is empty"):
+        plot_engagement([])
+    with pytest.raises(ValueError, match="lockups"):
+        plot_engagement([("a", res)], lockups=[1.0, 2.0])
