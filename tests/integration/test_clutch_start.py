@@ -186,7 +186,7 @@ def test_latch_is_bumpless_and_rearms_on_reslip() -> None:
     d0 = d_j + np.sign(d_j) * 0.05 * (res.t[j] - t_slip)
     later = (res.t > t_slip) & (res.t < t_slip + abs(d0) / 0.05) & (res.t < phases[1][0])
     offset = d0 - np.sign(d0) * 0.05 * (res.t[later] - t_slip)
-    assert later.sum() > 5
+    assert later.sum() >= 3  # enough samples in the ramp-out window to check it
     assert np.allclose(cmd[later], np.clip(law[later] + offset, 0.0, 0.12), atol=1e-6)
 
 
