@@ -13,7 +13,8 @@ For the full-model scenarios ``engage-ramp`` and ``tip-in`` (default parameters)
    event-driven run on ``full_reference_rhs`` itself (rtol 1e-10);
 2. baseline A: ``solve_ivp`` RK45 with the same guards as terminal events, rtol 1e-6, atol 1e-9;
 3. baseline B: tanh-smoothed friction (eps = 1e-3), LSODA, rtol 1e-6, atol 1e-9;
-4. ours: ``simulate`` at its default options and at rtol 1e-4 .. 1e-10 (atol = rtol * 1e-2).
+4. ours: ``simulate`` at its default options, at rtol 1e-4 .. 1e-10 (atol = rtol * 1e-2) and at
+   the default rtol with atol 1e-9, 1e-8 and 1e-6 (what the default atol trades).
 
 Errors against the reference: event times (events matched by element and new mode, nearest in
 time, one to one, within 20 ms) and speeds (max abs difference of the 7 speed states at each
@@ -328,7 +329,7 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
     )
     record(
         "ours_default",
-        f"ours default (rtol {default.rtol:g})",
+        f"ours default (rtol {default.rtol:g}, atol {default.atol:g})",
         t_o,
         res.t,
         res.x,
@@ -349,9 +350,8 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
         np.max(np.abs(xi - ref.dense(grid)[:, :7]))
     )
 
-    rtols = (1e-4, 1e-6, 1e-8) if quick else (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
-    for rt in rtols:
-        opts = SimulationOptions(rtol=rt, atol=rt * 1e-2)
+    def sweep(key: str, label: str, rt: float, at: float) -> None:
+        opts = SimulationOptions(rtol=rt, atol=at)
         run_ours_once(opts)  # warm-up
         times, kern = [], []
         for _ in range(OURS_SWEEP_REPEATS):
@@ -359,8 +359,8 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
             times.append(dt_o)
             kern.append(res.stats["wall_time_s"])
         record(
-            f"ours_rtol_{rt:.0e}",
-            f"ours rtol {rt:.0e}",
+            key,
+            label,
             times,
             res.t,
             res.x,
@@ -370,7 +370,18 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
             rejected=res.stats["rejected"],
             kernel_time_s=statistics.median(kern),
             rtol=rt,
-            atol=rt * 1e-2,
+            atol=at,
+        )
+
+    # work-precision: rtol with atol = rtol / 100
+    rtols = (1e-4, 1e-6, 1e-8) if quick else (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+    for rt in rtols:
+        sweep(f"ours_rtol_{rt:.0e}", f"ours rtol {rt:.0e}", rt, rt * 1e-2)
+    # the default rtol with other atol: what the default atol trades
+    atols = (1e-9,) if quick else (1e-9, 1e-8, 1e-6)
+    for at in atols:
+        sweep(
+            f"ours_atol_{at:.0e}", f"ours rtol {default.rtol:.0e} atol {at:.0e}", default.rtol, at
         )
     out["methods"] = methods
     return out

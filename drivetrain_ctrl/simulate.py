@@ -50,8 +50,9 @@ class SimulationOptions:
     and slips with it (tip-in: 1424 events at rtol 1e-4 against 63 converged;
     ``benchmarks/bench_simulate.py``). The default rtol 1e-8 meets 1e-5 s on event times. atol
     only matters for states near zero (a vehicle at rest, spring twists): the default 1e-7 is three
-    orders below the 1e-4 rad/s speed accuracy the benchmark checks; 1e-9 costs 15 % more steps on
-    engage-ramp for the same accuracy, 1e-6 loses it (benchmark notes in the README). h_max [s]: largest step, so that no
+    orders below the 1e-4 rad/s speed accuracy the benchmark checks; 1e-9 costs 18 % more steps on
+    engage-ramp for the same accuracy, 1e-6 loses it (``ours_atol_*`` in
+    ``benchmarks/results/simulate.json``). h_max [s]: largest step, so that no
     stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s];
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
