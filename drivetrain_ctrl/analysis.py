@@ -38,6 +38,7 @@ from .linear import (
     linearise,
     rebuild_operating_point,
     slip_mode_poles,
+    trim_tf,
 )
 from .metrics import json_ready
 
@@ -191,7 +192,7 @@ def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins
         raise ValueError(f"L: must be SISO, got {L.ninputs} in / {L.noutputs} out")
     dt = _dt_of(L)
     reasons: list[tuple[str, str]] = []
-    Lt = control.tf(L)
+    Lt = trim_tf(L)
     cl = control.feedback(Lt, 1)
     cpoles = np.asarray(cl.poles(), dtype=complex)
     stable = bool(np.all(np.abs(cpoles) < 1.0)) if dt else bool(np.all(cpoles.real < 0))
@@ -481,7 +482,7 @@ class NyquistData:
 
 def nyquist_data(L: Any, *, omega: Sequence[float] | None = None) -> NyquistData:
     """Nyquist data of the SISO loop ``L`` (continuous or discrete)."""
-    Lt = control.tf(L)
+    Lt = trim_tf(L)
     dt = _dt_of(Lt)
     w = _grid(Lt, omega)
     Lw = _freq(Lt, w)

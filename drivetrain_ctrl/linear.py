@@ -1007,9 +1007,62 @@ def throttle_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
     return control.tf([es.torque_per_throttle], den, inputs="throttle", outputs="omega_engine")
 
 
+def trim_tf(sys: Any) -> control.TransferFunction:
+    """``control.tf(sys)`` with the exact leading zeros of each numerator restored.
+
+    A state-space system ``(A, B, C, D)`` has ``num(z) = D den(z) + (C B) z^(n-1) + ...``: the
+    leading numerator coefficients are its Markov parameters ``D, C B, C A B, ...`` up to terms
+    in the earlier ones. When these are zero (a strictly proper plant, a sample of delay), the
+    conversion leaves them at round-off (e.g. 9e-16 against 0.06) instead of zero: a spurious zero
+    near infinity, and scipy's ``BadCoefficients`` warning in every later conversion. Here each
+    leading coefficient is dropped while the Markov parameter behind it is zero (``D`` exactly;
+    ``C A^(k-1) B`` within ``1e-12 |C| |A|^(k-1) |B|``, with element-wise absolute values: its
+    round-off scale) and the coefficient itself is below ``1e-6`` of the numerator's largest.
+    Transfer functions and systems without state pass through ``control.tf`` unchanged; names and
+    the sample time are kept."""
+    tf = control.tf(sys)
+    if not isinstance(sys, control.StateSpace) or sys.nstates == 0:
+        return tf
+    A = np.asarray(sys.A, dtype=float)
+    B = np.asarray(sys.B, dtype=float)
+    C = np.asarray(sys.C, dtype=float)
+    D = np.asarray(sys.D, dtype=float)
+    nums = []
+    for i in range(tf.noutputs):
+        row = []
+        for j in range(tf.ninputs):
+            num = np.atleast_1d(np.asarray(tf.num[i][j], dtype=float))
+            big = float(np.max(np.abs(num))) if num.size else 0.0
+            # num[k] is the coefficient behind Markov parameter k + off (0: D, 1: C B, ...)
+            off = len(tf.den[i][j]) - num.size
+            v, va = B[:, j].copy(), np.abs(B[:, j])
+            for _ in range(max(off - 1, 0)):
+                v, va = A @ v, np.abs(A) @ va
+            k = 0
+            while k < num.size - 1 and abs(num[k]) <= 1e-6 * big:
+                mk = k + off
+                if mk == 0:
+                    markov_zero = D[i, j] == 0.0
+                else:
+                    # |C A^(mk-1) B| against its round-off scale |C| |A|^(mk-1) |B|
+                    markov_zero = abs(float(C[i, :] @ v)) <= 1e-12 * float(np.abs(C[i, :]) @ va)
+                    v, va = A @ v, np.abs(A) @ va
+                if not markov_zero:
+                    break
+                k += 1
+            row.append(num[k:])
+        nums.append(row)
+    dens = [[np.asarray(tf.den[i][j], dtype=float) for j in range(tf.ninputs)]
+            for i in range(tf.noutputs)]  # fmt: skip
+    return control.tf(
+        nums, dens, tf.dt, inputs=tf.input_labels, outputs=tf.output_labels, name=tf.name
+    )
+
+
 def _tf_min(sys: Any) -> control.TransferFunction:
-    """Minimal transfer function (pole-zero cancellation; no slycot needed)."""
-    return control.minreal(control.tf(sys), verbose=False)
+    """Minimal transfer function (pole-zero cancellation; no slycot needed), with round-off
+    leading numerator coefficients dropped (:func:`trim_tf`)."""
+    return control.minreal(trim_tf(sys), verbose=False)
 
 
 def _siso(sys: control.StateSpace, inp: str, out: str) -> control.StateSpace:

@@ -171,3 +171,41 @@ def test_plots_run(tmp_path):
         str(tmp_path / "r.png")
     )
     assert (tmp_path / "m.png").exists() and (tmp_path / "r.png").exists()
+
+
+def test_trim_tf_drops_round_off_leading_numerator_terms_in_discrete_time() -> None:
+    """A sampled loop with one sample of delay: ``control.tf`` of its state-space form leaves the
+    leading numerator coefficient at round-off; :func:`linear.trim_tf` drops it (same frequency
+    response) and the margins come without scipy's BadCoefficients warning."""
+    import warnings
+
+    from scipy.signal import BadCoefficients
+
+    ts = 0.01
+    plant = control.c2d(control.tf([50.0], [0.2, 1.0, 0.0]) * control.tf([1.0], [0.01, 1.0]), ts)
+    delay = control.tf([1.0], [1.0, 0.0], ts)
+    pi = control.tf([0.02, -0.019], [1.0, -1.0], ts)
+    L_ss = control.ss(pi * plant * delay)
+    raw = control.tf(L_ss)
+    trimmed = L.trim_tf(L_ss)
+    assert len(trimmed.num[0][0]) < len(raw.num[0][0])
+    assert abs(trimmed.num[0][0][0]) > 1e-6 * np.max(np.abs(trimmed.num[0][0]))
+    w = np.logspace(-1, math.log10(math.pi / ts * 0.99), 50)
+    r1 = np.asarray(control.frequency_response(raw, w).complex).ravel()
+    r2 = np.asarray(control.frequency_response(trimmed, w).complex).ravel()
+    assert np.allclose(r1, r2, rtol=1e-9, atol=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BadCoefficients)
+        # python-control's own note on this loop (it switches to its frequency-response method)
+        warnings.filterwarnings("ignore", "stability_margins: Falling back", UserWarning)
+        m = A.loop_margins(trimmed)
+    assert m.phase_margin_deg is not None
+    # continuous time: the same for a strictly proper system; a transfer function passes as is
+    cont = control.ss(control.tf([1.0, 2.0], [1.0, 3.0, 2.0, 1.0]))
+    assert np.allclose(L.trim_tf(cont).num[0][0], [1.0, 2.0], rtol=1e-12)
+    assert np.allclose(L.trim_tf(cont).den[0][0], [1.0, 3.0, 2.0, 1.0], rtol=1e-12)
+    g = control.tf([1e-9, 1.0], [1.0, 1.0])
+    assert np.array_equal(L.trim_tf(g).num[0][0], g.num[0][0])
+    # a genuine (non-zero Markov parameter) small leading coefficient is kept
+    biproper = control.ss(control.tf([1e-8, 1.0, 1.0], [1.0, 2.0, 1.0]))
+    assert len(L.trim_tf(biproper).num[0][0]) == 3
