@@ -131,14 +131,19 @@ class Controller:
                 f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0"
             )
         if self.start_time is not None and not (
-            isinstance(self.start_time, (int, float)) and math.isfinite(self.start_time)
+            isinstance(self.start_time, (int, float))
+            and not isinstance(self.start_time, bool)
+            and math.isfinite(self.start_time)
         ):
             raise ValueError(
                 f"{self.name}.start_time = {self.start_time!r} [s]: must be a finite number"
             )
         awt = self.anti_windup_time
         if awt is not None and not (
-            isinstance(awt, (int, float)) and math.isfinite(awt) and awt > 0
+            isinstance(awt, (int, float))
+            and not isinstance(awt, bool)
+            and math.isfinite(awt)
+            and awt > 0
         ):
             raise ValueError(
                 f"{self.name}.anti_windup_time = {awt!r} [s]: must be a finite number > 0 or None"

@@ -147,7 +147,7 @@ def table_value(D: ChainData, k: int, r: int, a: float) -> float:
     return D.t_s[k, r] * a + D.t_o[k, r]
 
 
-@jit
+@jit_inline
 def update_regions(D: ChainData, x: F64, u: F64, reg: I64) -> None:
     """Set every table's region from the current arguments (used at events)."""
     for k in range(D.t_nb.shape[0]):
@@ -468,7 +468,7 @@ def stuck_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> 
     return Lam @ forces(D, x, u, fm, reg)
 
 
-@jit
+@jit_inline
 def n_guards(D: ChainData) -> int:
     return D.f_kind.shape[0] + 2 * D.t_nb.shape[0]
 
@@ -1247,12 +1247,12 @@ def eval_inputs(S, ua, ub, t, t_ref, u):  # type: ignore[no-untyped-def]
 
 
 @jit_inline
-def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """Derivative of the augmented state ``y = [x, controller states, W_in, E_diss...]``.
 
     ``PT``: transposed mode matrix (see :func:`rhs_into`). Hot path: no array views are made here
     (each view costs reference counting, which made a step 5x slower); ``u``, ``tau``, ``sv`` are
-    work buffers (``pd`` is not used: the dissipated powers go straight into ``dy``).
+    work buffers (the dissipated powers go straight into ``dy``).
     """
     ne = nx + n_cl_states(Cd)
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
@@ -1282,7 +1282,6 @@ def dp5_step(  # type: ignore[no-untyped-def]
     energy,
     u,
     tau,
-    pd,
     Ks,
     dy,
     yt,
@@ -1351,7 +1350,6 @@ def dp5_step(  # type: ignore[no-untyped-def]
             energy and st != 1,
             u,
             tau,
-            pd,
             dy,
             Cd,
             cs,
@@ -1371,9 +1369,9 @@ def dp5_step(  # type: ignore[no-untyped-def]
 
 
 @jit_nonrt
-def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
+def full_rhs_call(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, dy, Cd, cs, sv):  # type: ignore[no-untyped-def]
     """:func:`full_rhs` as an ordinary call (outside the hot loop)."""
-    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, pd, dy, Cd, cs, sv)
+    full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, dy, Cd, cs, sv)
 
 
 D1, D3, D4, D5, D6, D7 = (
@@ -1422,23 +1420,17 @@ def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, 
     some 350 flattened arguments."""
     eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
-    cl_guards(Cd, cs, y, nx, t, sv, g, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
-
-
-@jit_nonrt
-def _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):  # type: ignore[no-untyped-def]
-    """:func:`_guards_step_inl` as an ordinary call (outside the step loop)."""
-    _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau)
+    cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
 @jit_inline
 def _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g, Cd, cs, svw, tau, t1, u, sv):  # type: ignore[no-untyped-def]
     """Guards at the step end (t1, y1) from the step's last stage, which evaluated the inputs
     ``uw``, signals ``svw`` and forces ``tau`` at exactly (t1, y1) (first same as last): the same
-    values as :func:`_guards_step` without evaluating them again. Also copies ``uw``, ``svw`` into
-    ``u``, ``sv`` (the inputs at t1, as :func:`_guards_step` leaves them)."""
+    values as :func:`_guards_step_inl` without evaluating them again. Also copies ``uw``, ``svw``
+    into ``u``, ``sv`` (the inputs at t1, as :func:`_guards_step_inl` leaves them)."""
     guards_given_forces(D, y1, uw, fm, reg, Lam, g, tau)
-    cl_guards(Cd, cs, y1, nx, t1, svw, g, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
+    cl_guards(Cd, cs, y1, nx, t1, svw, g, n_guards(D))
     for i in range(u.shape[0]):
         u[i] = uw[i]
     for i in range(sv.shape[0]):
@@ -1619,7 +1611,7 @@ def _rho_step(J):  # type: ignore[no-untyped-def]
 
 
 @jit
-def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
+def stable_step_lazy(D, y, u, fm, reg, P, nx, key, jcache, lcache):  # type: ignore[no-untyped-def]
     """Largest step [s] that keeps the mode's fastest eigenvalue in the stability region,
     ``STABILITY_FACTOR / max |lambda(J)|`` (J at the first entry of the mode; cached per mode and
     table region), without the tight bound of the spectral radius until it can matter.
@@ -1629,17 +1621,15 @@ def stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: 
     mode (``exact``), else a cruder lower bound of it, ``STABILITY_FACTOR / ||S^-1 J S||``
     (balanced norm; J kept in ``jcache``). A step not longer than the crude bound is not limited
     by the tight one either, so :func:`stable_step_exact` is only called for longer steps, and
-    modes that only see short steps (chatter after events) never need it."""
-    key = _mode_key(fm, reg)
-    if key in hcache:
-        return hcache[key], True
-    if key in lcache:
-        return lcache[key], False
+    modes that only see short steps (chatter after events) never need it. The caller
+    (:func:`_stab_lookup`) has looked ``key`` up in both caches: this is the miss path. ``jcache``
+    keeps the balanced J (similar to J: the same spectral radius)."""
     J, _B = jacobians(D, y[:nx], u, fm, reg, P, False)
-    nrm = _balanced_norm(J)
+    A = _balance(J)
+    nrm = _inf_norm(A)
     # margin for round-off in the norm's sums (~1e-15)
     h_lo = STABILITY_FACTOR / (nrm * (1.0 + 1e-9)) if nrm > 0.0 else np.inf
-    jcache[key] = J
+    jcache[key] = A
     lcache[key] = h_lo
     return h_lo, False
 
@@ -1760,8 +1750,7 @@ def _dm_classify_core(D, y, u, fm, reg, tol, cand, caps):  # type: ignore[no-unt
     """First part of a mode decision: regions, capacities, the modes of the elements that are
     not candidates (``|w| > tol``, no capacity, smoothed); returns the number of candidates
     (``cand``), without projecting."""
-    for k in range(D.t_nb.shape[0]):
-        reg[k] = table_region(D, k, table_arg(D, k, y, u))
+    update_regions(D, y, u, reg)
     nc = 0
     for f in range(fm.shape[0]):
         cand[f] = 0
@@ -1781,7 +1770,7 @@ def _dm_classify_core(D, y, u, fm, reg, tol, cand, caps):  # type: ignore[no-unt
 
 
 @jit_inline
-def _consistency_nr(D, x, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyped-def]
+def _consistency_nr(D, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyped-def]
     """Total violation (0 = consistent) of trial mode ``fm`` for the candidate elements: stuck
     torques beyond static capacity, slip directions against the accelerations; from the forces
     of the trial mode in ``tau`` (no allocation)."""
@@ -1822,8 +1811,7 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
     :func:`decide_modes` does, or ``DM_MISS`` before changing ``fm`` if a trial's mode matrices are not
     cached (``trial`` holds that mode; call again once they are)."""
     nf = fm.shape[0]
-    for k in range(D.t_nb.shape[0]):
-        reg[k] = table_region(D, k, table_arg(D, k, x, u))
+    update_regions(D, x, u, reg)
     j = 0
     for f in range(nf):
         if cand[f]:
@@ -1852,7 +1840,7 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
             if s < 0:
                 return DM_MISS
             forces_into(D, x, u, trial, reg, tau, tau, -1)
-            v = _consistency_nr(D, x, trial, cand, caps, mP[s], mL[s], tau)
+            v = _consistency_nr(D, trial, cand, caps, mP[s], mL[s], tau)
             if v == 0.0:
                 for jj in range(nc):
                     fm[idx[jj]] = trial[idx[jj]]
@@ -1889,7 +1877,7 @@ def _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm):  # type: igno
 def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):  # type: ignore[no-untyped-def]
     """Guards after a decision into ``g0``; True if none is violated."""
     guards_into(D, y, u, fm, reg, Lam, g0, tau)
-    cl_guards(Cd, cs, y, nx, t, sv, g0, D.f_kind.shape[0] + 2 * D.t_nb.shape[0])
+    cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
     ok = True
     for q in range(g0.shape[0]):
         if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
@@ -1934,13 +1922,14 @@ def _decide_fast(  # type: ignore[no-untyped-def]
 
 @jit_inline
 def _stab_lookup(D, y, u, fm, reg, P, nx, hcache, jcache, lcache):  # type: ignore[no-untyped-def]
-    """:func:`stable_step_lazy` with the cache lookups inline (the call only for a new mode)."""
+    """The mode's step bound ``(h, exact)`` from the caches (see :func:`stable_step_lazy`, called
+    only for a new mode)."""
     key = _mode_key(fm, reg)
     if key in hcache:
         return hcache[key], True
     if key in lcache:
         return lcache[key], False
-    return stable_step_lazy(D, y, u, fm, reg, P, nx, hcache, jcache, lcache)
+    return stable_step_lazy(D, y, u, fm, reg, P, nx, key, jcache, lcache)
 
 
 @jit_nonrt
@@ -2048,7 +2037,6 @@ def _advance(  # type: ignore[no-untyped-def]
     u,
     tau,
     taug,
-    pd,
     Ks,
     dy,
     yt,
@@ -2076,7 +2064,7 @@ def _advance(  # type: ignore[no-untyped-def]
     bound is needed before the next step) or ``ADV_STEP``: an accepted step in which a guard
     fired or that ends at a stop time, not yet taken (the caller locates the event or handles the
     stop, as before). Scalars in ``fs`` = [t, h, log(err_old), h_stab, t_sample, hh, t1, h_next] and
-    ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j, hit_stop, u_fresh] (in and out).
+    ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j, hit_stop] (in and out).
     """
     t = fs[0]
     h = fs[1]
@@ -2131,7 +2119,6 @@ def _advance(  # type: ignore[no-untyped-def]
             energy,
             uw,
             tau,
-            pd,
             Ks,
             dy,
             yt,
@@ -2183,7 +2170,6 @@ def _advance(  # type: ignore[no-untyped-def]
             fs[7] = h_next
             ist[6] = j
             ist[7] = 1 if hit_stop else 0
-            ist[8] = 1 if u_fresh else 0
             code = ADV_STEP
             break
         t = t1
@@ -2289,7 +2275,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     svw = np.zeros(nsig)
     tau = np.zeros(n)
     taug = np.zeros(n)
-    pd = np.zeros(npow)
     ua = np.zeros(nsig)
     ub = np.zeros(nsig)
     Ts = Cd.cf[CF_TS] if Cd.ci[CI_DISC] != 0 else np.inf
@@ -2353,11 +2338,11 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
     h = h_init
     full_rhs_call(
-        D, S, ua, ub, t, t_ref, y, fm, reg, mPT[slot], nx, energy, uw, tau, pd, dy, Cd, cs, svw
+        D, S, ua, ub, t, t_ref, y, fm, reg, mPT[slot], nx, energy, uw, tau, dy, Cd, cs, svw
     )
     Ks[0, :] = dy
     nfev += 1
-    _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, mL[slot], nx, u, g0, Cd, cs, sv, taug)
+    # g0: the guards at (t, y) in the decided mode, from the decision (_dm_guards)
 
     T[0] = t
     Y[0] = y
@@ -2372,18 +2357,14 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     fm_old = fm.copy()
     reg_old = reg.copy()
 
-    u_fresh = False
     fs = np.zeros(8)
-    ist = np.zeros(9, dtype=np.int64)
+    ist = np.zeros(8, dtype=np.int64)
     pending = False  # a step taken here still to be recorded
-    need_u = False
     while True:
         if pending:
             if n_rec >= T.shape[0]:
                 T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
-            if need_u:
-                eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
-            # else: u holds the inputs at t (from the step's last stage)
+            # u, sv hold the inputs at (t, y): set by the mode decision at the event or stop
             _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
             U[n_rec, U.shape[1] - 1] = (
                 np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
@@ -2424,7 +2405,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             u,
             tau,
             taug,
-            pd,
             Ks,
             dy,
             yt,
@@ -2472,7 +2452,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         h_next = fs[7]
         j = ist[6]
         hit_stop = ist[7] != 0
-        u_fresh = ist[8] != 0
         if j < 0:
             t = t1
             _accept(y, y1, Ks, g0, g1)
@@ -2548,7 +2527,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 energy,
                 uw,
                 tau,
-                pd,
                 dy,
                 Cd,
                 cs,
@@ -2591,7 +2569,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 energy,
                 uw,
                 tau,
-                pd,
                 dy,
                 Cd,
                 cs,
@@ -2599,12 +2576,11 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             )
             Ks[0, :] = dy
             nfev += 1
-            _guards_step(D, S, ua, ub, t, t_ref, y, fm, reg, mL[slot], nx, u, g0, Cd, cs, sv, taug)
+            # g0 (guards at t in the new mode) and u, sv are the decision's (_dm_guards)
             if hh < h:
                 h_next = h
         h = h_next
         pending = True
-        need_u = not (u_fresh and j < 0 and not hit_stop)
 
     n_knee = 0
     for e in range(n_ev):

@@ -16,6 +16,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -204,6 +205,11 @@ class SimulationResult:
         from slip at or after ``after`` [s], that lasts at least ``min_duration`` [s] (a phase
         still running at the end of the run counts if it has lasted that long). None if there is
         none (never locks, or locks only briefly, or is stuck from the start and stays so)."""
+        for nm, v in (("min_duration", min_duration), ("after", after)):
+            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+                raise ValueError(f"lockup_time: {nm} = {v!r} [s]: must be a finite number")
+        if min_duration < 0:
+            raise ValueError(f"lockup_time: min_duration = {min_duration!r} [s]: must be >= 0")
         phases = self.stuck_phases(element)
         for t0, t1 in phases:
             if t0 >= after and t1 - t0 >= min_duration:
@@ -213,25 +219,15 @@ class SimulationResult:
     def stuck_phases(self, element: str = "clutch") -> list[tuple[float, float]]:
         """``(start, end)`` [s] of every stuck phase of friction ``element`` entered from another
         mode (the end of a phase still running is the end of the run)."""
-        stuck_name = None
-        for fi in self.model.frictions:
-            if fi.name == element:
-                stuck_name = fi.mode_names[0]
-        if stuck_name is None:
-            raise KeyError(f"no friction element {element!r}")
-        stuck = np.array([m == stuck_name for m in self.mode_series(element)])
+        stuck = np.asarray(self.fm[:, self.model.friction_index(element)] == K.STUCK, dtype=np.int8)
+        d = np.diff(stuck)
+        starts = np.flatnonzero(d == 1) + 1  # first stuck sample of a phase entered from slip
+        ends = np.flatnonzero(d == -1) + 1  # first sample after a phase
         out: list[tuple[float, float]] = []
-        i = 1
-        n = stuck.shape[0]
-        while i < n:
-            if stuck[i] and not stuck[i - 1]:
-                j = i
-                while j < n and stuck[j]:
-                    j += 1
-                t_end = float(self.t[j]) if j < n else float(self.t[-1])
-                out.append((float(self.t[i]), t_end))
-                i = j
-            i += 1
+        for i in starts:
+            k = int(np.searchsorted(ends, i))
+            t_end = float(self.t[ends[k]]) if k < ends.shape[0] else float(self.t[-1])
+            out.append((float(self.t[i]), t_end))
         return out
 
     def to_dataframe(self) -> pd.DataFrame:
@@ -370,6 +366,9 @@ def simulate(
         inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
     if controller is not None:
+        ci = controller_initial
+        if isinstance(ci, bool) or not isinstance(ci, numbers.Real) or not math.isfinite(ci):
+            raise ValueError(f"controller_initial = {ci!r}: must be a finite number")
         Cd, cs, refs = controller.compile(model, hold=float(controller_initial))
         y_cl0 = controller.initial_states(model, x0, float(controller_initial))
         sigs = sigs + list(refs)
@@ -416,15 +415,9 @@ def simulate(
     nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
     events = []
-    names: dict[tuple[int, int], tuple[str, str]] = {}  # (element, code) -> names, per call
     for te, el, a, b in zip(evt.tolist(), evel.tolist(), evf.tolist(), evto.tolist(), strict=True):
-        na = names.get((el, a))
-        if na is None:
-            na = names[(el, a)] = _element_mode_name(model, el, a)
-        nb = names.get((el, b))
-        if nb is None:
-            nb = names[(el, b)] = _element_mode_name(model, el, b)
-        events.append(Event(te, na[0], na[1], nb[1]))
+        name, mode_a = _element_mode_name(model, el, a)
+        events.append(Event(te, name, mode_a, _element_mode_name(model, el, b)[1]))
     stat = _STATUS.get(int(status), str(status))
     res = SimulationResult(
         model=model,

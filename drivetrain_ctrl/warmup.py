@@ -37,10 +37,6 @@ def warmup() -> float:
         output="torque",
     )
     simulate(one, np.zeros(1), {}, t_end=0.01, controller=c)
-    # the clutch start controllers (continuous and sampled) on the drivetrain
-    ps = load_scenario("paper-start")
-    for name in ("paper", "pi-10ms"):
-        ps.run(dt, controller=name, t_end=0.6)
     dt.model.jacobian(
         x0,
         dt.model.inputs(throttle=0.5, pedal=0.07, brake=0.0),

@@ -116,6 +116,13 @@ def test_controller_validation_names_the_field() -> None:
         _p(1.0, saturation=(1.0, -1.0))
     with pytest.raises(ValueError, match="delay_samples"):
         _p(1.0, delay_samples=2)
+    with pytest.raises(ValueError, match="start_time = True"):
+        _p(1.0, start_time=True)
+    with pytest.raises(ValueError, match="anti_windup_time = True"):
+        _p(1.0, anti_windup_time=True)
+    with pytest.raises(ValueError, match="controller_initial = nan"):
+        simulate(_one_body(), np.zeros(1), {}, t_end=0.1, controller=_p(1.0),
+                 controller_initial=float("nan"))  # fmt: skip
     assert math.isfinite(J)
 
 

@@ -137,6 +137,18 @@ def test_lockup_time() -> None:
     assert tip_in().lockup_time() is None  # stuck from the start
     with pytest.raises(KeyError, match="nope"):
         res.lockup_time("nope")
+    for bad in (float("nan"), "0.2", True):
+        with pytest.raises(ValueError, match="min_duration"):
+            res.lockup_time(min_duration=bad)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="min_duration = -1"):
+        res.lockup_time(min_duration=-1.0)
+    with pytest.raises(ValueError, match="after"):
+        res.lockup_time(after=float("inf"))
+    # stuck phases: entered from slip, each ending at the first sample after it
+    ph = res.stuck_phases("clutch")
+    stuck_events = [e.t for e in res.events if e.element == "clutch" and e.to_mode == "stuck"]
+    assert [p0 for p0, _ in ph] == stuck_events
+    assert all(p1 > p0 for p0, p1 in ph) and ph[-1][1] == res.t[-1]
     # a two-body clutch that locks at 0.5 s
     m, inputs, x0 = small()
     r = simulate(m, x0, inputs, t_end=1.0)
