@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .loading import is_finite_real
 from .params import (
     DrivetrainParams,
     Table,
@@ -130,7 +131,7 @@ def run_simulation(
     except ValueError as exc:
         raise InputError(f"--rtol: {exc}") from None
     t_stop = scenario.t_end if t_end is None else t_end
-    if not (isinstance(t_stop, int | float) and math.isfinite(t_stop) and t_stop > 0):
+    if not (is_finite_real(t_stop) and t_stop > 0):
         raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
     if scenario.start_time > t_stop:
         raise InputError(
