@@ -8,10 +8,13 @@ and writes ``reports/paper_fig14/``:
   tau_13 and C_1; vehicle speed), reduced and full model side by side;
 - ``metrics.json``: the engagement metrics of every run and the checks below.
 
-Checks (the issue's targets; reported, not tuned for): lock-up at 2.5 +/- 0.3 s on both models and
-the two within 0.15 s of each other; engine speed never below 800 rpm after the start;
-tracking_rms_rpm at most 400 for law (6) and at most 120 for the PI variant; energy residual at
-most 1e-6. ``--quick`` runs law (6) only.
+Checks (the issue's targets): lock-up at 2.5 +/- 0.3 s on both models and the two within 0.15 s of
+each other; engine speed never below 800 rpm after the start; tracking_rms_rpm at most 400 for
+law (6) and at most 120 for the PI variant; energy residual at most 1e-6. Law (6) runs with the
+paper's gains (parameter set's ``law6`` section), not tuned for these checks. The PI gains of the
+built-in ``pi`` controller were tuned for one of them: they were chosen on the reduced model for
+tracking_rms_rpm <= 120 on paper-start (see :mod:`drivetrain_ctrl.controllers`), so that PI check
+is met by construction rather than an independent result. ``--quick`` runs law (6) only.
 """
 
 from __future__ import annotations

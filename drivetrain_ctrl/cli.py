@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .loading import is_finite_real
 from .params import (
     DrivetrainParams,
     Table,
@@ -42,13 +43,20 @@ from .params import (
     field_paths,
     load_params,
 )
-from .scenarios import Scenario, builtin_scenarios, load_scenario
+from .scenarios import Scenario, ScenarioError, builtin_scenarios, load_scenario
 
 __all__ = ["main", "run_simulation"]
 
 PROG = "drivetrain-ctrl"
 MODELS = ("full", "reduced")
 DEFAULT_PARAMS = "passenger-car"
+
+
+def _controller_names(sep: str) -> str:
+    """The built-in controller names joined by ``sep`` (help and error texts)."""
+    from .controllers import builtin_controllers
+
+    return sep.join(builtin_controllers())
 
 
 class InputError(Exception):
@@ -123,8 +131,13 @@ def run_simulation(
     except ValueError as exc:
         raise InputError(f"--rtol: {exc}") from None
     t_stop = scenario.t_end if t_end is None else t_end
-    if not (isinstance(t_stop, int | float) and math.isfinite(t_stop) and t_stop > 0):
+    if not (is_finite_real(t_stop) and t_stop > 0):
         raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
+    if scenario.start_time > t_stop:
+        raise InputError(
+            f"--t-end = {t_stop!r}: the run would end before the start command of scenario "
+            f"{scenario.name!r} at {scenario.start_time:g} s (the metrics measure from there)"
+        )
     try:
         dt: Any = scenario.drivetrain(params, kind=kind)  # Any: Drivetrain's slots are untyped
         scenario.initial_state(dt)  # validates the initial state for this model
@@ -136,7 +149,7 @@ def run_simulation(
     if controller is None and scenario.needs_controller:
         raise InputError(
             f"scenario {scenario.name!r} needs a controller (it gives the engine-speed reference, "
-            "not the pedal): add --controller paper|pi|paper-10ms|pi-10ms|FILE.toml"
+            f"not the pedal): add --controller {_controller_names('|')}|FILE.toml"
         )
     if controller is not None:
         if not scenario.needs_controller:
@@ -150,6 +163,8 @@ def run_simulation(
             raise InputError(f"--controller: {exc}") from None
     try:
         res = scenario.run(dt, controller=spec, options=opts, t_end=float(t_stop))
+    except (ControllerError, ScenarioError) as exc:  # e.g. x_r0 or pedal0 outside the stroke
+        raise InputError(f"scenario {scenario.name!r}: {exc}") from None
     except (ZenoError, RuntimeError) as exc:
         raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
 
@@ -515,8 +530,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "--controller",
         default=None,
-        help="closed loop: paper (law 6), pi, paper-10ms, pi-10ms or a controller .toml file "
-        "(default: open loop; paper-start needs one)",
+        help=f"closed loop: {_controller_names(', ')} or a controller .toml file "
+        "(paper: law 6; default: open loop; paper-start needs one)",
     )
     sp.set_defaults(func=_cmd_simulate)
 
@@ -526,7 +541,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument(
         "--controller",
         default="paper",
-        help="paper, pi, paper-10ms, pi-10ms or a controller .toml file (default: paper)",
+        help=f"{_controller_names(', ')} or a controller .toml file (default: paper)",
     )
     rp.add_argument("--params", default=DEFAULT_PARAMS, help="parameter set name or .toml file")
     rp.add_argument("--model", choices=MODELS, default="reduced", help="model (default: reduced)")

@@ -47,9 +47,8 @@ A controller file (TOML; unknown keys are errors naming the key)::
 from __future__ import annotations
 
 import difflib
-import math
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +56,7 @@ import control
 import numpy as np
 
 from .closedloop import Actuator, Controller, LatchRamp
-from .loading import load_builtin_or_toml
+from .loading import is_finite_real, load_builtin_or_toml, reject_unknown
 from .signals import Signal
 
 __all__ = [
@@ -96,7 +95,7 @@ class UnstableLoopWarning(UserWarning):
 
 
 def _finite(where: str, name: str, v: Any, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if not is_finite_real(v):
         raise ControllerError(f"{where}{name} = {v!r}: must be a finite number")
     ok = (v > lo if lo_open else v >= lo) and v <= hi
     if not ok:
@@ -127,6 +126,8 @@ class ControllerSpec:
     anti_windup: bool = True
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ControllerError(f"controller name = {self.name!r}: must be a non-empty string")
         w = f"controller {self.name!r}: "
         if self.law not in LAWS:
             close = difflib.get_close_matches(str(self.law), LAWS, n=1)
@@ -142,6 +143,11 @@ class ControllerSpec:
                 raise ControllerError(f"{w}law 'pi' needs kp and ki")
             _finite(w, "kp", self.kp, lo, hi)
             _finite(w, "ki", self.ki, lo, hi)
+            if self.kp == 0 and self.ki == 0:
+                raise ControllerError(
+                    f"{w}kp = {self.kp!r}, ki = {self.ki!r}: at least one PI gain must be > 0 "
+                    "(with both zero the controller does nothing)"
+                )
         elif self.kp is not None or self.ki is not None:
             raise ControllerError(f"{w}kp/ki are PI gains; law {self.law!r} uses k_r")
         if self.sample_period_s is not None:
@@ -168,10 +174,6 @@ class ControllerSpec:
         if self.ki == 0.0:
             return None
         return max(self.kp / self.ki, MIN_ANTI_WINDUP_TIME_S)
-
-    @property
-    def is_sampled(self) -> bool:
-        return self.sample_period_s is not None
 
     def to_dict(self) -> dict[str, Any]:
         """TOML/JSON-ready form (``None`` fields left out)."""
@@ -221,9 +223,16 @@ class ControllerSpec:
     ) -> Controller:
         """The :class:`Controller` for parameter set ``params`` and engine-speed reference
         ``reference`` (omega_r(t) [rad/s]), active from ``start_time`` [s] (None: from the start).
+        ``x_r0`` must lie within the actuator stroke ``[actuator.x_min, actuator.x_max]`` of
+        ``params`` (else :class:`ControllerError`).
         """
         lw, act = params.law6, params.actuator
         x_r0 = lw.x_r0 if self.x_r0 is None else self.x_r0
+        if not act.x_min <= x_r0 <= act.x_max:
+            raise ControllerError(
+                f"controller {self.name!r}: x_r0 = {x_r0!r} [m]: must lie within the actuator "
+                f"stroke [{act.x_min!r}, {act.x_max!r}] [m] of parameter set {params.name!r}"
+            )
         self.check_stability(params)
         latch = LatchRamp(
             "clutch", "stuck", self.engage_rate_m_s, float(params.clutch.pedal_map.x[0])
@@ -261,14 +270,22 @@ def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
     the sample period and the transport delay is ``z^-d``. A first check used by :meth:`build`;
     the linear-analysis module gives the full picture (slip-dependent mu, driveline coupling).
     """
+    from .linear import law6_loop_closed_form  # local: linear imports closedloop, metrics, ...
+
     pm = params.clutch.pedal_map
     x0 = params.law6.x_r0 if spec.x_r0 is None else spec.x_r0
     xs, ys = np.asarray(pm.x, dtype=float), np.asarray(pm.y, dtype=float)
     k = int(np.clip(np.searchsorted(xs, x0, side="right") - 1, 0, len(xs) - 2))
     slope = abs((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]))
-    w, d = params.actuator.omega_a, params.actuator.delta_a
-    plant = control.tf([slope * w * w], [params.engine.J1, params.engine.b1]) * control.tf(
-        [1.0], [1.0, 2.0 * d * w, w * w]
+    act = params.actuator
+    # the plant |k13'| A(s) / (J_1 s + b_1): law (6)'s loop with unit gain, the controller apart
+    plant = law6_loop_closed_form(
+        k_r=1.0,
+        dk13_dxc=slope,
+        mu=1.0,
+        J1=params.engine.J1,
+        b1_eff=params.engine.b1,
+        actuator=Actuator(act.omega_a, act.delta_a),
     )
     C = control.tf(spec.lti(params))
     ts = spec.sample_period_s
@@ -298,33 +315,16 @@ def builtin_controllers() -> dict[str, ControllerSpec]:
     return {s.name: s for s in specs}
 
 
-_KEYS = {
-    "name",
-    "law",
-    "k_r",
-    "x_r0",
-    "kp",
-    "ki",
-    "sample_period_s",
-    "delay_samples",
-    "engage_rate_m_s",
-    "rate_limit_m_s",
-    "anti_windup",
-}
+#: the keys of a controller file: the fields of :class:`ControllerSpec`
+_KEYS = frozenset(f.name for f in fields(ControllerSpec))
 
 
 def controller_from_dict(d: dict[str, Any], *, where: str = "") -> ControllerSpec:
     """A :class:`ControllerSpec` from its TOML form; unknown keys are errors naming the key."""
-    for k in sorted(set(d) - _KEYS):
-        close = difflib.get_close_matches(k, sorted(_KEYS), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {sorted(_KEYS)}"
-        raise ControllerError(f"{where}{k}: unknown key{hint}")
+    reject_unknown(where, set(d), _KEYS, error=ControllerError)
     if "law" not in d:
         raise ControllerError(f"{where}law: missing (one of {LAWS})")
-    try:
-        return ControllerSpec(**{"name": "controller", **d})
-    except TypeError as exc:  # pragma: no cover - keys are checked above
-        raise ControllerError(f"{where}{exc}") from None
+    return ControllerSpec(**{"name": "controller", **d})
 
 
 def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:

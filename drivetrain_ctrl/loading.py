@@ -1,16 +1,43 @@
-"""Loading a named item: a built-in by name, or a TOML file (scenarios, controllers)."""
+"""Loading a named item: a built-in by name, or a TOML file (scenarios, controllers); the
+input checks shared by the loaders (unknown keys, finite numbers)."""
 
 from __future__ import annotations
 
 import difflib
+import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["load_builtin_or_toml", "load_toml_as"]
+__all__ = ["load_builtin_or_toml", "load_toml_as", "reject_unknown", "is_finite_real"]
 
 T = TypeVar("T")
+
+
+def is_finite_real(value: object) -> bool:
+    """True if ``value`` is a finite real number: an ``int``, ``float``, NumPy integer or NumPy
+    floating scalar (e.g. ``np.float32(0.5)``), not a bool, not NaN or +-inf."""
+    from .params import _is_real
+
+    if not _is_real(value):
+        return False
+    try:
+        return math.isfinite(float(value))  # type: ignore[arg-type]
+    except OverflowError:  # an int too large for a float
+        return False
+
+
+def reject_unknown(
+    where: str, got: Collection[str], allowed: Collection[str], *, error: type[ValueError]
+) -> None:
+    """Raise ``error`` naming the first (sorted) key of ``got`` not in ``allowed``, prefixed by
+    ``where`` (e.g. ``"initial."``), with a did-you-mean hint or the allowed keys."""
+    allowed_sorted = sorted(allowed)
+    for k in sorted(set(got) - set(allowed)):
+        close = difflib.get_close_matches(k, allowed_sorted, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {allowed_sorted}"
+        raise error(f"{where}{k}: unknown key{hint}")
 
 
 def load_builtin_or_toml(
@@ -40,13 +67,20 @@ def load_builtin_or_toml(
 def load_toml_as(
     path: Path, from_dict: Callable[[dict[str, Any]], T], *, error: type[ValueError]
 ) -> T:
-    """``from_dict`` of the TOML file ``path``; invalid TOML and errors of ``from_dict`` are
-    raised as ``error`` with the file name."""
-    with path.open("rb") as fh:
-        try:
+    """``from_dict`` of the TOML file ``path``; an unreadable file (a directory, no permission,
+    not UTF-8), invalid TOML and errors of ``from_dict`` are raised as ``error`` with the file
+    name. A missing file raises :class:`FileNotFoundError` (as before; callers report it)."""
+    try:
+        with path.open("rb") as fh:
             d = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise error(f"{path}: invalid TOML: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"{path}: invalid TOML: {exc}") from None
+    except FileNotFoundError:
+        raise
+    except UnicodeDecodeError as exc:
+        raise error(f"{path}: not a UTF-8 text file: {exc}") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the file: {exc.strerror or exc}") from None
     try:
         return from_dict(d)
     except error as exc:

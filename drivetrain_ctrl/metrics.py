@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from .loading import is_finite_real
 from .model import Mode
 from .units import m_s_to_kmh, rad_s_to_rpm
 
@@ -247,11 +248,41 @@ def filtered_jerk(
     low-pass filtered by a second-order Butterworth filter at ``cutoff_hz`` [Hz] run forwards and
     backwards (zero phase, ``scipy.signal.sosfiltfilt``) and differentiated (central differences).
     Returns ``(grid [s], filtered acceleration [m/s^2], jerk [m/s^3])``.
+
+    ``t`` and ``accel`` must be 1-D arrays of the same length >= 2 with finite values, ``t``
+    non-decreasing with ``t[-1] > t[0]`` (else :class:`ValueError` naming the argument). Repeated
+    times are allowed: a simulation records several samples at the time of an event.
     """
     from scipy import signal
 
+    t = np.asarray(t, dtype=float)
+    accel = np.asarray(accel, dtype=float)
+    if t.ndim != 1 or accel.ndim != 1:
+        raise ValueError(
+            f"filtered_jerk: t and accel must be 1-D arrays, got shapes {t.shape} and {accel.shape}"
+        )
+    if t.shape != accel.shape:
+        raise ValueError(
+            f"filtered_jerk: t and accel must have the same length, got {t.shape[0]} and "
+            f"{accel.shape[0]}"
+        )
+    if t.shape[0] < 2:
+        raise ValueError(f"filtered_jerk: t has {t.shape[0]} sample(s); needs at least 2")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("filtered_jerk: t must be finite")
+    if not np.all(np.isfinite(accel)):
+        raise ValueError("filtered_jerk: accel must be finite")
+    steps = np.diff(t)
+    if not np.all(steps >= 0):
+        i = int(np.argmax(steps < 0)) + 1
+        raise ValueError(
+            f"filtered_jerk: t must be non-decreasing, but t[{i}] = {t[i]!r} < "
+            f"t[{i - 1}] = {t[i - 1]!r}"
+        )
+    if not t[-1] > t[0]:
+        raise ValueError(f"filtered_jerk: t spans no time (t[0] = t[-1] = {t[0]!r})")
     for nm, v in (("cutoff_hz", cutoff_hz), ("fs_hz", fs_hz)):
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+        if not is_finite_real(v) or v <= 0:
             raise ValueError(f"filtered_jerk: {nm} = {v!r} [Hz]: must be a finite number > 0")
     if not cutoff_hz < fs_hz / 2:
         raise ValueError(
@@ -368,10 +399,13 @@ def engagement_metrics(
     None); ``clutch`` names the clutch friction element. Figures whose state or element does not
     exist are None.
     """
-    if start is not None and (
-        isinstance(start, bool) or not isinstance(start, int | float) or not math.isfinite(start)
-    ):
+    if start is not None and not is_finite_real(start):
         raise ValueError(f"engagement_metrics: start = {start!r} [s]: must be a finite number")
+    if start is not None and not float(res.t[0]) <= start <= float(res.t[-1]):
+        raise ValueError(
+            f"engagement_metrics: start = {start!r} [s]: must lie within the run "
+            f"[{float(res.t[0])!r}, {float(res.t[-1])!r}] s"
+        )
     if reference is not None and not callable(reference):
         raise TypeError(
             f"engagement_metrics: reference = {reference!r}: must be a Signal (callable of t [s])"
@@ -406,6 +440,8 @@ def engagement_metrics(
     # accelerations (only if something needs them)
     need_acc = vehicle in names or (fc is not None and t_lock is not None)
     i_lock: int | None = None
+    right: F64 | None = None
+    left: F64 | None = None
     if t_lock is not None and fc is not None:
         # the sample recorded just after the lock-up event (several samples may share its time)
         col = res.fm[:, fc[0]]
@@ -455,7 +491,9 @@ def engagement_metrics(
         if c_shaft is not None:
             out["peak_shaft_torque_Nm"] = float(np.max(np.abs(T[:, c_shaft])))
 
-    _engagement_window(res, out, model, fc, t_lock, i_lock, vehicle, engine, start, reference)
+    _engagement_window(
+        res, out, model, fc, t_lock, i_lock, vehicle, engine, start, reference, right, left
+    )
     impacts, crossings = _backlash_counts(res)
     out["n_backlash_impacts"] = impacts
     out["n_backlash_crossings"] = crossings
@@ -474,8 +512,11 @@ def _engagement_window(
     engine: str,
     start: float | None,
     reference: Any,
+    right: F64 | None,
+    left: F64 | None,
 ) -> None:
-    """The engagement-window figures of :func:`engagement_metrics` into ``out``."""
+    """The engagement-window figures of :func:`engagement_metrics` into ``out``; ``right``,
+    ``left``: the :func:`state_accelerations` of ``res`` (None if they were not needed)."""
     names = model.state_names
     t = res.t
     t_start = float(t[0]) if start is None else float(start)
@@ -512,8 +553,6 @@ def _engagement_window(
             c1 = res.source_torques()[model.chain.sources[0].name]
             d = np.interp(grid[trk], t, tau) - np.interp(grid[trk], t, c1)
             out["torque_match_rms_Nm"] = _rms(d)
-    need_acc = (fc is not None and i_lock is not None) or vehicle in names
-    right, left = state_accelerations(res) if need_acc else (None, None)
     if fc is not None and i_lock is not None and right is not None and left is not None:
         jb = fc[1] + 1  # the clutch coupling's driven body
         out["lurch_rad_s2"] = float(right[i_lock, jb] - left[i_lock, jb])

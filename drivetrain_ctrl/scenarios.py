@@ -30,7 +30,6 @@ Unknown keys are errors naming the key.
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .drivetrain import INPUTS, Drivetrain
-from .loading import load_builtin_or_toml
+from .loading import is_finite_real, load_builtin_or_toml, reject_unknown
 from .params import DrivetrainParams
 from .signals import Signal, constant, ramp, step
 from .units import kmh_to_m_s, rpm_to_rad_s
@@ -73,9 +72,7 @@ class Scenario:
     pedal0: float = 0.11
 
     def __post_init__(self) -> None:
-        if not (
-            isinstance(self.t_end, (int, float)) and math.isfinite(self.t_end) and self.t_end > 0
-        ):
+        if not (is_finite_real(self.t_end) and self.t_end > 0):
             raise ScenarioError(
                 f"{self.name}: t_end = {self.t_end!r}: must be a finite number > 0 [s]"
             )
@@ -129,6 +126,17 @@ class Scenario:
     def input_signals(self) -> dict[str, Signal]:
         return dict(self.inputs)
 
+    def check_pedal0(self, params: DrivetrainParams) -> None:
+        """Raise :class:`ScenarioError` unless ``pedal0`` (the controller's initial output [m])
+        lies within the actuator stroke ``[actuator.x_min, actuator.x_max]`` of ``params``."""
+        act = params.actuator
+        if not act.x_min <= self.pedal0 <= act.x_max:
+            raise ScenarioError(
+                f"{self.name}: controller.pedal0 = {self.pedal0!r} [m]: must lie within the "
+                f"actuator stroke [{act.x_min!r}, {act.x_max!r}] [m] of parameter set "
+                f"{params.name!r}"
+            )
+
     def make_controller(self, dt: Drivetrain, controller: Any) -> Any:
         """The closed-loop :class:`~drivetrain_ctrl.closedloop.Controller` of this scenario on
         drivetrain ``dt`` from ``controller``: a built-in name (``paper``, ``pi``, ...), a
@@ -146,6 +154,7 @@ class Scenario:
                 f"scenario {self.name!r} is open loop (it gives the pedal signal); it takes no "
                 "controller"
             )
+        self.check_pedal0(dt.params)
         spec = load_controller(controller)
         return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
 
@@ -164,11 +173,16 @@ class Scenario:
         from .simulate import simulate
 
         if self.needs_controller and controller is None:
+            from .controllers import builtin_controllers
+
+            names = ", ".join(repr(n) for n in builtin_controllers())
             raise ScenarioError(
                 f"scenario {self.name!r} needs a controller (it gives the engine-speed reference, "
-                "not the pedal): pass controller='paper', 'pi', 'paper-10ms', 'pi-10ms' or a "
-                "controller TOML file (CLI: --controller)"
+                f"not the pedal): pass controller={names} or a controller TOML file "
+                "(CLI: --controller)"
             )
+        if controller is not None:
+            self.check_pedal0(dt.params)
         return simulate(
             dt.model,
             self.initial_state(dt),
@@ -235,17 +249,14 @@ _INITIAL = {"engine_speed_rpm", "vehicle_speed_kmh", "throttle", "twist_torque",
 
 
 def _reject_unknown(where: str, got: set[str], allowed: set[str]) -> None:
-    for k in sorted(got - allowed):
-        close = difflib.get_close_matches(k, sorted(allowed), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {sorted(allowed)}"
-        raise ScenarioError(f"{where}{k}: unknown key{hint}")
+    reject_unknown(where, got, allowed, error=ScenarioError)
 
 
 def _num(where: str, d: dict[str, Any], key: str) -> float:
     if key not in d:
         raise ScenarioError(f"{where}{key}: missing")
     v = d[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if not is_finite_real(v):
         raise ScenarioError(f"{where}{key} = {v!r}: must be a finite number")
     return float(v)
 
@@ -323,7 +334,7 @@ def idle_throttle(params: DrivetrainParams, omega: float) -> float:
 
     Engine torque = engine friction: ``K theta = b1 omega + c1`` (linear torque model, eq. (1)) or
     ``theta C_max(omega) = b1 omega + c1`` (map model)."""
-    if isinstance(omega, bool) or not isinstance(omega, int | float) or not math.isfinite(omega):
+    if not is_finite_real(omega):
         raise ScenarioError(f"idle_throttle: omega = {omega!r} [rad/s]: must be a finite number")
     if omega <= 0:
         raise ScenarioError(f"idle_throttle: omega = {omega!r} [rad/s]: must be > 0")

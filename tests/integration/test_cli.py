@@ -170,3 +170,55 @@ def test_simulate_closed_loop_scenario_needs_a_controller(tmp_path: Path, capsys
     assert code == 0
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["controller"]["name"] == "pi" and m["tracking_rms_rpm"] < 120.0
+
+
+@pytest.mark.parametrize("command", ["simulate", "report"])
+def test_unreadable_controller_file_exits_2(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    d = tmp_path / "d.toml"
+    d.mkdir()  # a directory named like a controller file
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes('name = "caf\xe9"\nlaw = "paper"\n'.encode("latin-1"))
+    extra = ["--scenario", "paper-start", "--model", "reduced"] if command == "simulate" else []
+    for f, what in ((d, "cannot read the file"), (latin, "not a UTF-8 text file")):
+        out = tmp_path / f"out-{f.stem}"
+        rc = main([command, *extra, "--controller", str(f), "--out", str(out)])
+        assert rc == 2, (command, f)
+        err = capsys.readouterr().err
+        assert str(f) in err and what in err, err
+        assert "Traceback" not in err
+        assert not out.exists()
+
+
+def test_controller_x_r0_outside_the_stroke_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "far.toml"
+    f.write_text('name = "far"\nlaw = "paper"\nx_r0 = 0.5\n', encoding="utf-8")
+    rc = main(
+        ["simulate", "--scenario", "paper-start", "--model", "reduced", "--controller", str(f)]
+        + ["--out", str(tmp_path / "x")]
+    )
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "x_r0 = 0.5" in err and "actuator stroke" in err and "Traceback" not in err
+
+
+def test_t_end_before_the_start_command_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # engage-ramp's start command (start of the pedal release) is at 0.2 s
+    assert simulate_reduced("engage-ramp", tmp_path / "x", "--t-end", "0.1") == 2
+    err = capsys.readouterr().err
+    assert "--t-end" in err and "0.2 s" in err and "Traceback" not in err
+    assert not (tmp_path / "x").exists()
+
+
+def test_help_lists_the_builtin_controllers(capsys: pytest.CaptureFixture[str]) -> None:
+    from drivetrain_ctrl.controllers import builtin_controllers
+
+    for command in ("simulate", "report"):
+        assert main([command, "--help"]) == 0
+        text = "".join(capsys.readouterr().out.split())  # argparse wraps, also at hyphens
+        assert ",".join(builtin_controllers()) in text, command

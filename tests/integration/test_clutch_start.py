@@ -155,9 +155,28 @@ def test_pi_integrator_does_not_wind_up_while_the_actuator_saturates() -> None:
     # ... with back-calculation it is pulled back while saturated: far less than that, and the
     # unsaturated value comes back to the limit within T_t = kp/ki = 0.02 s after saturation ends
     assert xi[-1] < 0.2 * xi_free[-1]
+    # recovery: once the cause of the saturation ends (the error changes sign) the output leaves
+    # the limit within T_t; without anti-windup it stays saturated for the rest of the run
+    T_t = spec.anti_windup_time_s()
+    assert T_t == pytest.approx(0.02)
+
+    def error_sign_change(r) -> float:  # type: ignore[no-untyped-def]
+        err = SC.reference(r.t) - r.state("omega_engine")
+        after = r.t > 0.5
+        return float(r.t[after][np.flatnonzero(err[after] <= 0.0)[0]])
+
+    t_e0 = error_sign_change(res)
+    sat_aw = res.extras["controller_command"] >= P.actuator.x_max - 1e-15
+    assert sat_aw[np.searchsorted(res.t, 0.5, side="right")]  # saturated at the start
+    t_leave = float(res.t[(res.t > 0.5) & ~sat_aw][0])
+    assert abs(t_leave - t_e0) <= T_t, (t_leave, t_e0)
+    assert not np.any(sat_aw[res.t >= t_leave])  # and does not saturate again
+    t_e0_free = error_sign_change(res_free)
+    assert res_free.t[-1] - t_e0_free > 4.0 * T_t
+    assert np.all(sat[res_free.t >= t_e0_free])
 
 
-def _relsip_controller(kind: str) -> Controller:
+def _relsip_controller() -> Controller:
     """Law (6) whose latch drives the pedal back open: the clutch locks, then re-slips."""
     c = load_controller("paper").build(
         P, reference=SC.reference, start_time=0.5, driven_state="omega_primary"
@@ -166,7 +185,7 @@ def _relsip_controller(kind: str) -> Controller:
 
 
 def test_latch_is_bumpless_and_rearms_on_reslip() -> None:
-    ctl = _relsip_controller("reduced")
+    ctl = _relsip_controller()
     res, m = _run("reduced", ctl)
     phases = res.stuck_phases("clutch")
     assert len(phases) >= 2 and m["n_lock_events"] == len(phases)

@@ -22,6 +22,7 @@ from drivetrain_ctrl.chain import two_body_clutch
 from drivetrain_ctrl.metrics import (
     METRIC_KEYS,
     engagement_metrics,
+    filtered_jerk,
     jerk,
     json_ready,
     round_sig,
@@ -137,3 +138,52 @@ def test_rounding() -> None:
     got = json_ready({"a": (np.float64(2.0) / 3.0, np.int64(3)), "b": np.bool_(True)})
     assert got == {"a": [0.666666667, 3], "b": True}
     assert type(got["a"][1]) is int and type(got["b"]) is bool
+
+
+def test_start_must_lie_within_the_run() -> None:
+    res = run(40.0)
+    for bad in (-0.1, 1.0 + 1e-9, 5.0):
+        with pytest.raises(ValueError, match=r"start = .*must lie within the run"):
+            engagement_metrics(res, start=bad)
+    for bad_type in (True, "0.1", float("nan")):
+        with pytest.raises(ValueError, match="start"):
+            engagement_metrics(res, start=bad_type)  # type: ignore[arg-type]
+    # the ends and NumPy scalars are accepted
+    assert engagement_metrics(res, start=0.0)["start_s"] == 0.0
+    assert engagement_metrics(res, start=np.float32(0.25))["start_s"] == 0.25
+    assert engagement_metrics(res, start=float(res.t[-1]))["start_s"] == float(res.t[-1])
+
+
+def test_engagement_window_figures_unchanged_by_reusing_accelerations() -> None:
+    # the window figures use the accelerations computed once; the lurch of the driven body b2
+    # at lock-up is the hand-derived jump (see the module docstring)
+    k = 40.0
+    m = metrics(run(k))
+    assert m["lurch_rad_s2"] == pytest.approx(T / (J1 + J2) - k / J2, rel=1e-8)
+
+
+def test_filtered_jerk_checks_its_arrays() -> None:
+    t = np.linspace(0.0, 1.0, 101)
+    a = np.sin(t)
+    with pytest.raises(ValueError, match="1-D"):
+        filtered_jerk(t.reshape(1, -1), a)
+    with pytest.raises(ValueError, match="same length"):
+        filtered_jerk(t, a[:-1])
+    with pytest.raises(ValueError, match="at least 2"):
+        filtered_jerk(t[:1], a[:1])
+    with pytest.raises(ValueError, match="t must be finite"):
+        filtered_jerk(np.where(t == 0.5, np.nan, t), a)
+    with pytest.raises(ValueError, match="accel must be finite"):
+        filtered_jerk(t, np.where(t == 0.5, np.inf, a))
+    with pytest.raises(ValueError, match=r"t must be non-decreasing, but t\[3\]"):
+        filtered_jerk(np.array([0.0, 0.1, 0.2, 0.15, 0.3]), np.zeros(5))
+    with pytest.raises(ValueError, match="t spans no time"):
+        filtered_jerk(np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="cutoff_hz"):
+        filtered_jerk(t, a, cutoff_hz=True)  # type: ignore[arg-type]
+    # NumPy scalars are numbers; repeated times (events) are allowed
+    g, af, jk = filtered_jerk(t, a, cutoff_hz=np.float32(10.0), fs_hz=np.int64(1000))
+    assert g.shape == af.shape == jk.shape and g[0] == 0.0
+    tr = np.array([0.0, 0.5, 0.5, 1.0])
+    g, af, jk = filtered_jerk(tr, np.array([0.0, 1.0, 1.0, 2.0]))
+    assert np.allclose(jk[200:-200], 2.0, rtol=1e-3)

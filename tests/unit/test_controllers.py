@@ -1,0 +1,120 @@
+"""Input checks of controller specs and files (:mod:`drivetrain_ctrl.controllers`) and of the
+shared loader (:mod:`drivetrain_ctrl.loading`); no simulation."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivetrain_ctrl.controllers import (
+    _KEYS,
+    ControllerError,
+    ControllerSpec,
+    builtin_controllers,
+    controller_from_dict,
+    load_controller,
+)
+from drivetrain_ctrl.loading import is_finite_real, load_toml_as, reject_unknown
+from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.signals import constant
+
+P = default_params()
+
+
+def _build(spec: ControllerSpec) -> object:
+    return spec.build(P, reference=constant(150.0), start_time=0.5)
+
+
+@pytest.mark.parametrize("name", ["", "   ", None, 3])
+def test_name_must_be_a_non_empty_string(name: object) -> None:
+    with pytest.raises(ControllerError, match="name"):
+        ControllerSpec(name=name, law="paper")  # type: ignore[arg-type]
+
+
+def test_pi_with_both_gains_zero_is_rejected() -> None:
+    with pytest.raises(ControllerError, match=r"kp = 0\.0, ki = 0\.0"):
+        ControllerSpec(name="dead", law="pi", kp=0.0, ki=0.0)
+    # one zero gain is still a controller
+    assert ControllerSpec(name="p-only", law="pi", kp=1e-3, ki=0.0).ki == 0.0
+    assert ControllerSpec(name="i-only", law="pi", kp=0.0, ki=1e-3).kp == 0.0
+
+
+def test_x_r0_outside_the_actuator_stroke_is_rejected_at_build() -> None:
+    act = P.actuator
+    for x in (act.x_max + 0.01, act.x_min - 0.01):
+        spec = ControllerSpec(name="off", law="paper", x_r0=x)  # within the spec's own range
+        with pytest.raises(ControllerError, match=r"x_r0 = .*actuator stroke"):
+            _build(spec)
+    # the ends of the stroke are accepted
+    for x in (act.x_min, act.x_max):
+        assert _build(ControllerSpec(name="edge", law="paper", x_r0=x)) is not None
+
+
+@pytest.mark.parametrize("v", [np.float32(3e-4), np.float64(3e-4), np.int64(0)])
+def test_numpy_scalars_are_numbers(v: object) -> None:
+    spec = ControllerSpec(name="np", law="pi", kp=v, ki=np.float32(1e-3))  # type: ignore[arg-type]
+    assert spec.kp == v
+    assert ControllerSpec(name="np", law="paper", x_r0=np.float32(0.07)).x_r0 is not None  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("v", [True, "0.1", np.float32("nan"), float("inf"), None, 10**400])
+def test_non_numbers_are_rejected_naming_the_field(v: object) -> None:
+    with pytest.raises(ControllerError, match="engage_rate_m_s"):
+        ControllerSpec(name="bad", law="paper", engage_rate_m_s=v)  # type: ignore[arg-type]
+
+
+def test_is_finite_real() -> None:
+    for ok in (1, 0.5, np.float32(0.5), np.float16(2), np.int8(3), np.float64(-1e300)):
+        assert is_finite_real(ok), ok
+    for bad in (True, np.bool_(True), "1", None, float("nan"), np.float32("inf"), 10**400, 1j):
+        assert not is_finite_real(bad), bad
+
+
+def test_keys_are_the_spec_fields_and_unknown_keys_are_named() -> None:
+    assert {f.name for f in dataclasses.fields(ControllerSpec)} == _KEYS
+    with pytest.raises(ControllerError, match=r"kpp: unknown key; did you mean 'kp'\?"):
+        controller_from_dict({"law": "pi", "kpp": 1e-3, "ki": 1e-3})
+    with pytest.raises(ControllerError, match=r"zzz: unknown key; allowed: \['anti_windup'"):
+        controller_from_dict({"law": "pi", "zzz": 1})
+    with pytest.raises(ControllerError, match="law: missing"):
+        controller_from_dict({"name": "x"})
+
+
+def test_reject_unknown_uses_the_given_error_class() -> None:
+    class MyError(ValueError):
+        pass
+
+    with pytest.raises(MyError, match=r"^sec\.abd: unknown key; did you mean 'abc'\?$"):
+        reject_unknown("sec.", {"abc", "abd"}, {"abc"}, error=MyError)
+    with pytest.raises(MyError, match=r"^sec\.b: unknown key; allowed: \['a'\]$"):
+        reject_unknown("sec.", {"a", "b"}, {"a"}, error=MyError)
+    reject_unknown("", {"a"}, {"a", "c"}, error=MyError)  # nothing unknown: no error
+
+
+def test_unreadable_controller_files_raise_controller_error(tmp_path: Path) -> None:
+    d = tmp_path / "d.toml"
+    d.mkdir()
+    with pytest.raises(ControllerError, match=r"d\.toml: cannot read the file"):
+        load_controller(str(d))
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes('name = "caf\xe9"\nlaw = "paper"\n'.encode("latin-1"))
+    with pytest.raises(ControllerError, match=r"latin\.toml: not a UTF-8 text file"):
+        load_controller(latin)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("law = \n", encoding="utf-8")
+    with pytest.raises(ControllerError, match=r"bad\.toml: invalid TOML"):
+        load_controller(bad)
+
+
+def test_load_toml_as_keeps_file_not_found(tmp_path: Path) -> None:
+    # load_params documents FileNotFoundError for a missing file; the loader keeps it
+    with pytest.raises(FileNotFoundError):
+        load_toml_as(tmp_path / "missing.toml", dict, error=ControllerError)
+
+
+def test_builtin_controllers_build() -> None:
+    for spec in builtin_controllers().values():
+        assert _build(spec) is not None
