@@ -1237,7 +1237,13 @@ def slip_mode_poles(
     """Poles [1/s] of the linearised slip mode: the plant alone (pedal held) or closed by a
     continuous ``controller`` (the full state-space interconnection, so every driveline mode is
     included, controllable or not)."""
-    sys = linearise(op, inputs=("x_c",), mu_slope=mu_slope)
+    return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
+
+
+def _slip_mode_poles_of(
+    sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
+) -> NDArray[np.complex128]:
+    """:func:`slip_mode_poles` from the plant already linearised at ``op`` (input ``x_c``)."""
     if controller is None:
         return np.asarray(np.linalg.eigvals(sys.A), dtype=complex)
     if controller.is_discrete:
