@@ -894,7 +894,8 @@ def linearise(
     for arg, val in (("inputs", inputs), ("outputs", outputs)):
         if isinstance(val, str | bytes):
             raise ValueError(
-                f"{arg} = {val!r}: a sequence of names is needed, e.g. ({val!r},), not a bare string"
+                f"{arg} = {val!r}: a sequence of names is needed, e.g. ({val!r},), not a bare "
+                "string"
             )
     alias_inv = {v: k for k, v in INPUT_ALIASES.items() if k in m.input_names}
     for nm in inputs:

@@ -30,7 +30,6 @@ import io
 import json
 import math
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +38,7 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .analysis import _auto_grid, loop_margins, nyquist_data, poles_of, root_locus
+from .analysis import _auto_grid, _dt_of, loop_margins, nyquist_data, poles_of, root_locus
 from .controllers import ControllerSpec, UnstableLoopWarning, load_controller
 from .drivetrain import Drivetrain
 from .linear import (
@@ -53,6 +52,7 @@ from .linear import (
     locked_analysis,
     locked_trim,
     operating_point_from_result,
+    trim_tf,
 )
 from .metrics import engagement_metrics, json_ready
 from .params import DrivetrainParams, default_params, load_params
@@ -176,21 +176,16 @@ def _check_model(model: Any) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def _clean(c: Sequence[float] | F64) -> list[float]:
-    """Polynomial coefficients with round-off terms (< 1e-10 of the largest) set to zero."""
-    a = np.atleast_1d(np.asarray(c, dtype=float))
-    big = float(np.max(np.abs(a))) if a.size else 0.0
-    a = np.where(np.abs(a) < 1e-10 * big, 0.0, a)
-    return [float(v) for v in a]
-
-
 def _tf_dict(sys: Any) -> dict[str, Any]:
-    t = control.tf(sys)
-    dt = t.dt
+    """Coefficients (descending powers) of the SISO ``sys`` from
+    :func:`~drivetrain_ctrl.linear.trim_tf` (leading numerator round-off dropped where the Markov
+    parameter behind it is zero). No clipping relative to the largest coefficient: a model's
+    polynomials span many decades (the full model's plant: 1 to 1e30)."""
+    t = trim_tf(sys)
     return {
-        "num": _clean(t.num[0][0]),
-        "den": _clean(t.den[0][0]),
-        "dt": None if (dt is None or dt is True or dt == 0) else float(dt),
+        "num": [float(v) for v in np.atleast_1d(np.asarray(t.num[0][0], dtype=float))],
+        "den": [float(v) for v in np.atleast_1d(np.asarray(t.den[0][0], dtype=float))],
+        "dt": _dt_of(t),
     }
 
 
