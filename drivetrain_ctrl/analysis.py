@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -34,10 +35,10 @@ from numpy.typing import NDArray
 from .closedloop import Actuator, Controller
 from .linear import (
     OperatingPoint,
+    _slip_mode_poles_of,
     clutch_loop,
     linearise,
     rebuild_operating_point,
-    slip_mode_poles,
     trim_tf,
 )
 from .metrics import json_ready
@@ -71,7 +72,13 @@ class Pole:
 
 def poles_of(p: Sequence[complex] | NDArray[Any], dt: float | None = None) -> tuple[Pole, ...]:
     """:class:`Pole` of each value (discrete poles ``z`` mapped by ``s = ln(z)/dt``), sorted by
-    frequency then imaginary part."""
+    frequency then imaginary part. ``dt`` [s]: None (continuous poles) or the finite, positive
+    sample period (ValueError otherwise)."""
+    if dt is not None:
+        if isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating):
+            raise ValueError(f"dt = {dt!r}: must be None or a finite sample period > 0 [s]")
+        if not (math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt = {dt!r}: must be None or a finite sample period > 0 [s]")
     out = []
     for z in np.asarray(p, dtype=complex):
         s = complex(np.log(z) / dt) if dt else complex(z)
@@ -85,27 +92,50 @@ def _dt_of(L: Any) -> float | None:
     return None if (dt is None or dt == 0 or dt is True) else float(dt)
 
 
-def _grid(L: Any, omega: Sequence[float] | None) -> F64:
-    if omega is not None:
-        w = np.asarray(omega, dtype=float)
-        if w.ndim != 1 or w.size < 2 or not np.all(w > 0):
-            raise ValueError(f"omega: a 1-D grid of > 1 positive frequencies [rad/s], got {w!r}")
-        return w
+def _check_siso(L: Any) -> None:
+    if not isinstance(L, control.LTI):
+        raise TypeError(f"L: a python-control LTI system is needed, got {type(L).__name__}")
+    if L.ninputs != 1 or L.noutputs != 1:
+        raise ValueError(f"L: must be SISO, got {L.ninputs} in / {L.noutputs} out")
+
+
+def _auto_grid(L: Any, *, n: int = 4000, span: float = 1e3, tiny: float = 0.0) -> F64:
+    """``n`` log-spaced frequencies [rad/s] from ``1/span`` of the slowest to ``span`` times the
+    fastest pole or zero of ``L`` with magnitude above ``tiny`` (discrete: ``ln(z)/dt``, up to
+    0.999 of the Nyquist frequency)."""
     dt = _dt_of(L)
     feats = [abs(complex(x)) for x in np.concatenate([L.poles(), L.zeros()])]
     if dt:
         zs = [complex(x) for x in np.concatenate([L.poles(), L.zeros()]) if abs(complex(x)) > 1e-12]
         feats = [abs(complex(np.log(z) / dt)) for z in zs]
-    feats = [f for f in feats if f > 0 and np.isfinite(f)] or [1.0]
-    lo = min(feats) / 1e3
-    hi = math.pi / dt * 0.999 if dt else max(feats) * 1e3
-    return np.logspace(math.log10(lo), math.log10(hi), 4000)
+    feats = [f for f in feats if f > tiny and np.isfinite(f)] or [1.0]
+    lo = min(feats) / span
+    hi = math.pi / dt * 0.999 if dt else max(feats) * span
+    return np.logspace(math.log10(lo), math.log10(hi), n)
+
+
+def _grid(L: Any, omega: Sequence[float] | None) -> F64:
+    if omega is None:
+        return _auto_grid(L)
+    try:
+        w = np.asarray(omega, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"omega = {omega!r}: a 1-D grid of frequencies [rad/s] is needed") from exc
+    if w.ndim != 1 or w.size < 2:
+        raise ValueError(f"omega: a 1-D grid of > 1 positive frequencies [rad/s], got {w!r}")
+    if not np.all(np.isfinite(w)):
+        raise ValueError(f"omega: frequencies must be finite [rad/s], got {w!r}")
+    if not np.all(w > 0):
+        raise ValueError(f"omega: frequencies must be > 0 [rad/s], got {w!r}")
+    if not np.all(np.diff(w) > 0):
+        raise ValueError(f"omega: frequencies must be strictly increasing [rad/s], got {w!r}")
+    return w
 
 
 def _freq(L: Any, w: F64) -> NDArray[np.complex128]:
     dt = _dt_of(L)
     s = np.exp(1j * w * dt) if dt else 1j * w
-    return np.array([complex(L(x)) for x in s])
+    return np.asarray(L(s), dtype=complex).reshape(-1)
 
 
 @dataclass(frozen=True)
@@ -186,10 +216,7 @@ def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins
     """Margins of the SISO loop ``L`` (python-control LTI, continuous or discrete; negative
     feedback). ``omega`` [rad/s]: frequency grid for the disk margin, ``ms``, ``mt`` and the
     bandwidth (None: automatic, up to Nyquist for a discrete loop)."""
-    if not isinstance(L, control.LTI):
-        raise TypeError(f"L: a python-control LTI system is needed, got {type(L).__name__}")
-    if L.ninputs != 1 or L.noutputs != 1:
-        raise ValueError(f"L: must be SISO, got {L.ninputs} in / {L.noutputs} out")
+    _check_siso(L)
     dt = _dt_of(L)
     reasons: list[tuple[str, str]] = []
     Lt = trim_tf(L)
@@ -387,6 +414,25 @@ def _scaled_pedal_map(params: Any, x_c: float, factor: float) -> Any:
     return params.replace(**{"clutch.pedal_map": {"x": list(pm.x), "y": [float(v) for v in y]}})
 
 
+def _values(values: Any) -> list[float]:
+    """``values`` of :func:`root_locus` as floats: a non-empty 1-D sequence of finite numbers."""
+    msg = f"values = {values!r}: a non-empty 1-D sequence of finite numbers is needed"
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind not in "biuf":
+            raise ValueError(msg)
+        items: list[Any] = list(values.reshape(-1)) if values.ndim == 1 else []
+    elif isinstance(values, str | bytes) or not hasattr(values, "__iter__"):
+        raise ValueError(msg)
+    else:
+        items = list(values)
+        if not all(isinstance(v, numbers.Real) for v in items):
+            raise ValueError(msg)
+    vals = [float(v) for v in items]
+    if not vals or not all(math.isfinite(v) for v in vals):
+        raise ValueError(msg)
+    return vals
+
+
 def root_locus(
     op: OperatingPoint,
     controller: Controller | None,
@@ -407,9 +453,11 @@ def root_locus(
     """
     if parameter not in PARAMETERS:
         raise ValueError(f"parameter = {parameter!r}: choose from {sorted(PARAMETERS)}")
-    vals = [float(v) for v in values]
-    if not vals or not all(math.isfinite(v) for v in vals):
-        raise ValueError(f"values = {values!r}: a non-empty sequence of finite numbers")
+    vals = _values(values)
+    # k_r and omega_a change the controller only: the plant is linearised once
+    plant_fixed = parameter in ("k_r", "omega_a")
+    sys_slip: control.StateSpace | None = None
+    open_poles: NDArray[Any] | None = None
     pts = []
     for v in vals:
         o, c, ms = op, controller, mu_slope
@@ -434,9 +482,14 @@ def root_locus(
                 p2 = _scaled_pedal_map(p, xc, v)
             o = rebuild_operating_point(op, p2)
         if o.clutch_mode in ("slip+", "slip-"):
-            poles = slip_mode_poles(o, c, mu_slope=ms)
+            sys = sys_slip if sys_slip is not None else linearise(o, inputs=("x_c",), mu_slope=ms)
+            if plant_fixed:
+                sys_slip = sys
+            poles = _slip_mode_poles_of(sys, o, c)
         else:
-            poles = np.linalg.eigvals(linearise(o).A)
+            poles = open_poles if open_poles is not None else np.linalg.eigvals(linearise(o).A)
+            if plant_fixed:
+                open_poles = poles
         mr = float(np.max(np.asarray(poles).real)) if len(poles) else -math.inf
         pts.append(RootLocusPoint(v, poles_of(poles), o.mode_names, mr, bool(mr < 0)))
     return RootLocus(parameter, PARAMETERS[parameter], tuple(pts))
@@ -481,7 +534,9 @@ class NyquistData:
 
 
 def nyquist_data(L: Any, *, omega: Sequence[float] | None = None) -> NyquistData:
-    """Nyquist data of the SISO loop ``L`` (continuous or discrete)."""
+    """Nyquist data of the SISO loop ``L`` (python-control LTI, continuous or discrete; the same
+    checks as :func:`loop_margins`). ``omega`` [rad/s]: the frequency grid (None: automatic)."""
+    _check_siso(L)
     Lt = trim_tf(L)
     dt = _dt_of(Lt)
     w = _grid(Lt, omega)

@@ -78,6 +78,7 @@ from .closedloop import Actuator, Controller
 from .drivetrain import Drivetrain
 from .metrics import json_ready
 from .model import Mode, Model
+from .params import DrivetrainParams
 from .units import GRAVITY, kmh_to_m_s
 
 __all__ = [
@@ -125,6 +126,13 @@ def _finite(name: str, v: object) -> float:
     f = float(v)
     if not math.isfinite(f):
         raise ValueError(f"{name} = {v!r}: must be a finite number")
+    return f
+
+
+def _positive(name: str, v: object) -> float:
+    f = _finite(name, v)
+    if not f > 0:
+        raise ValueError(f"{name} = {v!r}: must be > 0")
     return f
 
 
@@ -414,6 +422,23 @@ def _check_fraction(name: str, v: float) -> float:
     return v
 
 
+def _check_brake(v: object) -> float:
+    br = _finite("brake", v)
+    if br < 0:
+        raise ValueError(f"brake = {v!r} [N m]: a brake capacity must be >= 0")
+    return br
+
+
+def _check_pedal(dt: Drivetrain, v: object) -> float:
+    """``x_c`` [m] inside the pedal map's knots (the map is clamped outside them)."""
+    xc = _finite("x_c", v)
+    pm = dt.params.clutch.pedal_map
+    lo, hi = float(pm.x[0]), float(pm.x[-1])
+    if not lo <= xc <= hi:
+        raise ValueError(f"x_c = {v!r} m: outside the pedal map's range [{lo!r}, {hi!r}] m")
+    return xc
+
+
 def slip_operating_point(
     drivetrain: Drivetrain,
     *,
@@ -432,13 +457,14 @@ def slip_operating_point(
     ``twist_torque`` [N m, primary frame] preloads the driveline springs; None (default): the
     quasi-static torque for which the driven shaft and the vehicle accelerate together (no shuffle
     at the start). A slip mode is not an equilibrium: the certificate reports the drift and the
-    time to lock. Raises ValueError if the slip speed is zero or the clutch carries no torque.
+    time to lock. Raises ValueError if the slip speed is zero or the clutch carries no torque, if
+    ``x_c`` is outside the pedal map's knots or ``brake`` < 0.
     """
     we = _finite("omega_engine", omega_engine)
     wd = _finite("omega_driven", omega_driven)
-    xc = _finite("x_c", x_c)
+    xc = _check_pedal(drivetrain, x_c)
     th = _check_fraction("throttle", throttle)
-    br = _finite("brake", brake)
+    br = _check_brake(brake)
     if we == wd:
         raise ValueError(
             f"omega_engine = omega_driven = {we!r} rad/s: no slip (use locked_trim for a locked "
@@ -516,7 +542,8 @@ def locked_trim(
     zero friction torque in a stuck friction parallel to a spring (the spring then carries the
     torque: the largest margin). Solved with ``scipy.optimize.root`` (the table regions follow the
     iterate). Raises ValueError naming the speed and slope if the throttle needed is outside
-    [0, 1], or if the clutch cannot hold (its stuck torque exceeds its static capacity).
+    [0, 1], or if the clutch cannot hold (its stuck torque exceeds its static capacity); also if
+    ``x_c`` is outside the pedal map's knots or ``brake`` < 0.
     """
     vk = _finite("vehicle_speed_kmh", vehicle_speed_kmh)
     if vk <= 0:
@@ -531,8 +558,8 @@ def locked_trim(
             dt = Drivetrain(dt.params, kind=dt.kind, gear=dt.gear, slope=s)
     m = dt.model
     v = kmh_to_m_s(vk)
-    xc = float(dt.params.clutch.pedal_map.x[0]) if x_c is None else _finite("x_c", x_c)
-    br = _finite("brake", brake)
+    xc = float(dt.params.clutch.pedal_map.x[0]) if x_c is None else _check_pedal(dt, x_c)
+    br = _check_brake(brake)
     w = dt.vehicle_speed_to_primary(v)
     x0 = dt.rigid_state(omega_engine=w, v_vehicle=v, throttle=0.3)
     u0 = m.inputs(throttle=0.3, pedal=xc, brake=br)
@@ -649,7 +676,10 @@ def locked_trim(
 
 def rebuild_operating_point(op: OperatingPoint, params: Any) -> OperatingPoint:
     """The same operating point (same recipe: speeds, pedal, throttle or trim conditions) for
-    another parameter set ``params``. Raises ValueError for a point taken from a trajectory."""
+    another parameter set ``params`` (a :class:`~drivetrain_ctrl.params.DrivetrainParams`, else
+    TypeError). Raises ValueError for a point taken from a trajectory."""
+    if not isinstance(params, DrivetrainParams):
+        raise TypeError(f"params: a DrivetrainParams is needed, got {type(params).__name__}")
     if op.recipe is None:
         raise ValueError("op: taken from a trajectory (no recipe); it cannot be rebuilt")
     what, kw = op.recipe
@@ -861,6 +891,12 @@ def linearise(
     order of ``sys.state_labels``.
     """
     m = op.model
+    for arg, val in (("inputs", inputs), ("outputs", outputs)):
+        if isinstance(val, str | bytes):
+            raise ValueError(
+                f"{arg} = {val!r}: a sequence of names is needed, e.g. ({val!r},), not a bare "
+                "string"
+            )
     alias_inv = {v: k for k, v in INPUT_ALIASES.items() if k in m.input_names}
     for nm in inputs:
         if nm not in alias_inv:
@@ -981,28 +1017,40 @@ def engine_side(op: OperatingPoint, *, mu_slope: float | None = None) -> EngineS
 
 
 def actuator_tf(actuator: Actuator) -> control.TransferFunction:
-    """x_r -> x_c [m/m]: ``w_a^2 / (s^2 + 2 d_a w_a s + w_a^2)`` (paper, Sec. IV)."""
+    """x_r -> x_c [m/m]: ``w_a^2 / (s^2 + 2 d_a w_a s + w_a^2)`` (paper, Sec. IV). TypeError
+    if ``actuator`` is not an :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    if not isinstance(actuator, Actuator):
+        raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
     w, d = actuator.omega, actuator.delta
     return control.tf([w * w], [1.0, 2 * d * w, w * w], inputs="x_r", outputs="x_c")
 
 
-def pedal_to_clutch_torque(op: OperatingPoint) -> control.TransferFunction:
+def pedal_to_clutch_torque(
+    op: OperatingPoint, *, engine: EngineSide | None = None
+) -> control.TransferFunction:
     """x_c -> tau_13 [N m/m] in slip: the static gain ``k13'(x_c) mu s`` (driveline-independent:
-    the kinetic torque depends on the pedal and the slip only)."""
-    es = engine_side(op)
+    the kinetic torque depends on the pedal and the slip only). ``engine``: ``engine_side(op)``
+    if already computed."""
+    es = engine_side(op) if engine is None else engine
     return control.tf([es.clutch_gain], [1.0], inputs="x_c", outputs="tau_13")
 
 
-def clutch_torque_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
-    """tau_13 -> omega_1 [rad/s / N m] in slip: ``-1 / (J_1 s + b_1')``."""
-    es = engine_side(op)
+def clutch_torque_to_engine_speed(
+    op: OperatingPoint, *, engine: EngineSide | None = None
+) -> control.TransferFunction:
+    """tau_13 -> omega_1 [rad/s / N m] in slip: ``-1 / (J_1 s + b_1')``. ``engine``:
+    ``engine_side(op)`` if already computed."""
+    es = engine_side(op) if engine is None else engine
     return control.tf([-1.0], [es.J1, es.b1_eff], inputs="tau_13", outputs="omega_engine")
 
 
-def throttle_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
+def throttle_to_engine_speed(
+    op: OperatingPoint, *, engine: EngineSide | None = None
+) -> control.TransferFunction:
     """theta -> omega_1 [rad/s] in slip with constant mu (clutch torque held by the pedal):
-    ``(dC_G/dtheta_f) / ((tau_p s + 1)(J_1 s + b_1'))``."""
-    es = engine_side(op)
+    ``(dC_G/dtheta_f) / ((tau_p s + 1)(J_1 s + b_1'))``. ``engine``: ``engine_side(op)`` if
+    already computed."""
+    es = engine_side(op) if engine is None else engine
     den = np.polymul([es.tau_p, 1.0], [es.J1, es.b1_eff])
     return control.tf([es.torque_per_throttle], den, inputs="throttle", outputs="omega_engine")
 
@@ -1093,7 +1141,10 @@ def law6_loop_closed_form(
 ) -> control.TransferFunction:
     """Closed form of law (6)'s loop with constant mu:
     ``L(s) = k_r |k13'(x_c)| mu A(s) / (J_1 s + b_1')`` (units: k_r [m s/rad], k13' [N m/m],
-    J_1 [kg m^2], b_1' [N m s/rad]; L dimensionless)."""
+    J_1 [kg m^2], b_1' [N m s/rad]; L dimensionless). TypeError if ``actuator`` is not an
+    :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    if not isinstance(actuator, Actuator):
+        raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
     for nm, v in (("k_r", k_r), ("J1", J1)):
         if not _finite(nm, v) > 0:
             raise ValueError(f"{nm} = {v!r}: must be > 0")
@@ -1112,6 +1163,7 @@ class ClutchLoop:
     ``closed_loop`` the state-space closed loop (reference -> omega_1) whose poles include the
     driveline modes. ``discrete``: sampled controller analysed in discrete time (``dt`` [s]):
     ``L(z) = C(z) z^-d ZOH{P}(z)``, exact at the samples. ``engine``: :class:`EngineSide`.
+    ``source``: the :class:`~drivetrain_ctrl.closedloop.Controller` the loop was built for.
     """
 
     op: OperatingPoint = field(repr=False)
@@ -1132,6 +1184,7 @@ class ClutchLoop:
     closed_loop: control.StateSpace
     discrete: bool
     dt: float | None
+    source: Controller | None = field(default=None, repr=False, compare=False)
 
 
 def _controller_sign(controller: Controller, op: OperatingPoint) -> float:
@@ -1201,9 +1254,9 @@ def clutch_loop(
         controller_name=controller.name,
         engine=es,
         actuator=actuator_tf(controller.actuator) if controller.actuator else control.tf(1, 1),
-        x_c_to_tau13=control.tf([es.clutch_gain], [1.0]),
-        tau13_to_omega1=control.tf([-1.0], [es.J1, es.b1_eff]),
-        theta_to_omega1=throttle_to_engine_speed(op),
+        x_c_to_tau13=pedal_to_clutch_torque(op, engine=es),
+        tau13_to_omega1=clutch_torque_to_engine_speed(op, engine=es),
+        theta_to_omega1=throttle_to_engine_speed(op, engine=es),
         x_c_to_accel=pedal_to_vehicle_accel(op, mu_slope=mu_slope),
         plant=P_use,
         controller=C,
@@ -1215,6 +1268,7 @@ def clutch_loop(
         closed_loop=cl,
         discrete=disc,
         dt=Ts,
+        source=controller,
     )
 
 
@@ -1237,7 +1291,13 @@ def slip_mode_poles(
     """Poles [1/s] of the linearised slip mode: the plant alone (pedal held) or closed by a
     continuous ``controller`` (the full state-space interconnection, so every driveline mode is
     included, controllable or not)."""
-    sys = linearise(op, inputs=("x_c",), mu_slope=mu_slope)
+    return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
+
+
+def _slip_mode_poles_of(
+    sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
+) -> NDArray[np.complex128]:
+    """:func:`slip_mode_poles` from the plant already linearised at ``op`` (input ``x_c``)."""
     if controller is None:
         return np.asarray(np.linalg.eigvals(sys.A), dtype=complex)
     if controller.is_discrete:
@@ -1405,7 +1465,17 @@ def shuffle_speed_source_threshold(
     ``k = b/J + (e + b)/m``, ``g = (b e + h (J + m))/(J m)``; its larger root is ``d*``. Returns
     ``(d*, omega*)`` [N m s/rad, rad/s]. To first order in the damping ``d* = -b (1 + J/m)^2 -
     e (J/m)^2`` (the trace of the system matrix minus the rigid-body pole).
+
+    ``J``, ``m``, ``h`` must be finite and > 0, ``b``, ``e`` finite and >= 0 with ``b + e > 0``
+    (ValueError naming the field otherwise).
     """
+    J, m, h = (_positive(nm, v) for nm, v in (("J", J), ("m", m), ("h", h)))
+    b, e = (_finite(nm, v) for nm, v in (("b", b), ("e", e)))
+    for nm, v in (("b", b), ("e", e)):
+        if v < 0:
+            raise ValueError(f"{nm} = {v!r}: a damping [N m s/rad] must be >= 0")
+    if b + e <= 0:
+        raise ValueError(f"b = {b!r}, e = {e!r}: b + e must be > 0 (an undamped driveline)")
     kk = b / J + (e + b) / m
     gg = (b * e + h * (J + m)) / (J * m)
     qa = (e + b) / (J * J * m)
@@ -1438,9 +1508,13 @@ def _reduced_figures(op: OperatingPoint) -> tuple[float, float, float, float, fl
     return J, me, h, float(D.damp[c]), float(D.visc[ip]), b_e
 
 
-def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -> JudderThreshold:
+def judder_threshold(
+    op: OperatingPoint, controller: Controller | None = None, *, loop: ClutchLoop | None = None
+) -> JudderThreshold:
     """Critical friction slope at which a falling mu(slip) destabilises the slip mode (reduced
     model; ``controller`` None = pedal held, else a continuous clutch controller, e.g. law (6)).
+    ``loop``: ``clutch_loop(op, controller)`` if already built (not rebuilt then; ValueError if
+    it is not that loop, e.g. built for another point or controller or with a ``mu_slope``).
 
     Derivation. In slip the clutch torque perturbation is ``c (dw_1 - dw_2) + k13' mu s dx_c``
     with ``c = k13 mu'``. Eliminating the engine (and the controller) the driven side sees the
@@ -1471,6 +1545,8 @@ def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -
     d_star, w_star = shuffle_speed_source_threshold(J=J, m=me, h=h, b=b, e=be)
     c_ss = d_star - bp
     if controller is None:
+        if loop is not None:
+            raise ValueError("loop: given without a controller (the pedal-held case has no loop)")
 
         def Ze(s: complex) -> complex:
             return es.J1 * s + b1
@@ -1479,7 +1555,15 @@ def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -
     else:
         if controller.is_discrete:
             raise ValueError("judder_threshold: a continuous controller is needed")
-        lp = clutch_loop(op, controller)
+        if loop is None:
+            lp = clutch_loop(op, controller)
+        elif loop.op is op and loop.source is controller and loop.engine == es:
+            lp = loop
+        else:
+            raise ValueError(
+                "loop: not clutch_loop(op, controller) (another operating point, controller or "
+                "mu_slope)"
+            )
         Lf = lp.L
 
         def Ze(s: complex) -> complex:
@@ -1547,7 +1631,7 @@ def linearise_visited_modes(
     never across a switch. A mode is the friction modes, backlash regions and table segments
     (pedal map, spring pieces) together. Sorted by decreasing duration."""
     T = np.asarray(result.t)
-    if not (math.isfinite(min_duration) and min_duration >= 0):
+    if not _finite("min_duration", min_duration) >= 0:
         raise ValueError(f"min_duration = {min_duration!r} [s]: must be >= 0")
     keys = [tuple(int(v) for v in f) + (-1,) + tuple(int(v) for v in r)
             for f, r in zip(result.fm, result.reg, strict=True)]  # fmt: skip

@@ -30,7 +30,6 @@ import io
 import json
 import math
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,19 +38,21 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .analysis import loop_margins, nyquist_data, poles_of, root_locus
+from .analysis import _auto_grid, _dt_of, loop_margins, nyquist_data, poles_of, root_locus
 from .controllers import ControllerSpec, UnstableLoopWarning, load_controller
 from .drivetrain import Drivetrain
 from .linear import (
     ClutchLoop,
     OperatingPoint,
+    _controller_sign,
+    _driven_state,
     clutch_loop,
-    engine_side,
     judder_threshold,
     linearise_visited_modes,
     locked_analysis,
     locked_trim,
     operating_point_from_result,
+    trim_tf,
 )
 from .metrics import engagement_metrics, json_ready
 from .params import DrivetrainParams, default_params, load_params
@@ -175,21 +176,16 @@ def _check_model(model: Any) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-def _clean(c: Sequence[float] | F64) -> list[float]:
-    """Polynomial coefficients with round-off terms (< 1e-10 of the largest) set to zero."""
-    a = np.atleast_1d(np.asarray(c, dtype=float))
-    big = float(np.max(np.abs(a))) if a.size else 0.0
-    a = np.where(np.abs(a) < 1e-10 * big, 0.0, a)
-    return [float(v) for v in a]
-
-
 def _tf_dict(sys: Any) -> dict[str, Any]:
-    t = control.tf(sys)
-    dt = t.dt
+    """Coefficients (descending powers) of the SISO ``sys`` from
+    :func:`~drivetrain_ctrl.linear.trim_tf` (leading numerator round-off dropped where the Markov
+    parameter behind it is zero). No clipping relative to the largest coefficient: a model's
+    polynomials span many decades (the full model's plant: 1 to 1e30)."""
+    t = trim_tf(sys)
     return {
-        "num": _clean(t.num[0][0]),
-        "den": _clean(t.den[0][0]),
-        "dt": None if (dt is None or dt is True or dt == 0) else float(dt),
+        "num": [float(v) for v in np.atleast_1d(np.asarray(t.num[0][0], dtype=float))],
+        "den": [float(v) for v in np.atleast_1d(np.asarray(t.den[0][0], dtype=float))],
+        "dt": _dt_of(t),
     }
 
 
@@ -212,15 +208,9 @@ def _tf_text(d: dict[str, Any]) -> str:
 
 
 def _omega_grid(L: Any) -> F64:
-    """Log frequency grid [rad/s] around the poles and zeros of ``L`` (to Nyquist if discrete)."""
-    dt = L.dt if L.dt not in (None, True, 0) else None
-    pz = np.concatenate([np.asarray(L.poles()), np.asarray(L.zeros())]).astype(complex)
-    if dt:
-        pz = np.array([np.log(z) / dt for z in pz if abs(z) > 1e-12])
-    feats = [abs(z) for z in pz if abs(z) > 1e-9 and np.isfinite(abs(z))] or [1.0]
-    lo = min(feats) / 100.0
-    hi = math.pi / float(dt) * 0.999 if dt else max(feats) * 100.0
-    return np.logspace(math.log10(lo), math.log10(hi), N_FREQ)
+    """Log frequency grid [rad/s] around the poles and zeros of ``L`` (to Nyquist if discrete):
+    :data:`N_FREQ` points over two decades beyond them."""
+    return _auto_grid(L, n=N_FREQ, span=100.0, tiny=1e-9)
 
 
 def _bode(sys: Any, w: F64) -> dict[str, list[float]]:
@@ -237,7 +227,7 @@ def _bode(sys: Any, w: F64) -> dict[str, list[float]]:
     }
 
 
-def _margins_entry(op: OperatingPoint, cl: ClutchLoop) -> dict[str, Any]:
+def _margins_entry(cl: ClutchLoop) -> dict[str, Any]:
     m = loop_margins(cl.L).to_dict()
     reasons = dict(m.pop("reasons") or {})
     out = dict(m)
@@ -284,7 +274,10 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
         out["gain"] = {"parameter": "gain_factor", "unit": "-", "nominal": 1.0, "points": pts}
     # physical parameter: the clutch friction slope mu' (judder), through the critical value
     try:
-        crit = judder_threshold(op, None if ctrl.is_discrete else ctrl).mu_slope_crit
+        if ctrl.is_discrete:
+            crit = judder_threshold(op, None).mu_slope_crit
+        else:
+            crit = judder_threshold(op, ctrl, loop=cl).mu_slope_crit
     except (ValueError, RuntimeError):
         crit = -0.01
     if not (math.isfinite(crit) and crit != 0):
@@ -308,7 +301,7 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
             )
         d = {"parameter": "mu_slope", "unit": "s/rad", "points": pts}
     d["judder_mu_slope_crit"] = crit
-    d["nominal"] = engine_side(op).mu_slope_torque / max(engine_side(op).k13, 1e-12)
+    d["nominal"] = cl.engine.mu_slope_torque / max(cl.engine.k13, 1e-12)
     out["mu_slope"] = d
     return out
 
@@ -363,8 +356,7 @@ def _matched_controller(spec: ControllerSpec, params: Any, op: OperatingPoint, r
     n = c.lti.nstates
     if n == 0:
         return c
-    a, b = c.sign_of if c.sign_of is not None else ("", "")
-    sgn = 1.0 if not a or op.state(a) - op.state(b) >= 0 else -1.0
+    sgn = _controller_sign(c, op)
     e = 0.0
     for coef, src in c.measurement:
         e += coef * (float(ref(op.t or 0.0)) if src == "ref" else op.state(src))
@@ -375,36 +367,61 @@ def _matched_controller(spec: ControllerSpec, params: Any, op: OperatingPoint, r
     return dataclasses.replace(c, initial_lti_state=tuple(float(q) for q in x))
 
 
+@dataclass(frozen=True)
+class _StepRuns:
+    """What the step comparisons share: the controller matched at the slip point and the
+    nonlinear run with the nominal reference (the same for every step size)."""
+
+    t0: float
+    horizon: float
+    controller: Any
+    nominal: Any
+
+
+def _step_run(sc: Scenario, dtr: Drivetrain, op: OperatingPoint, c: Any, H: float) -> Any:
+    t0 = float(op.t or 0.0)
+    return simulate(
+        dtr.model,
+        np.array(op.x),
+        sc.input_signals(),
+        t0=t0,
+        t_end=t0 + H,
+        controller=c,
+        controller_initial=op.input("pedal"),
+    )
+
+
+def _nominal_step_run(
+    sc: Scenario, dtr: Drivetrain, spec: ControllerSpec, params: Any, op: OperatingPoint
+) -> _StepRuns:
+    t0 = float(op.t or 0.0)
+    H = min(STEP_HORIZON_S, sc.t_end - t0)
+    ref = sc.reference
+    if ref is None:  # pragma: no cover - checked by build_report
+        raise ValueError(f"scenario {sc.name!r}: no reference")
+    # the controller state is matched to the pedal with the nominal reference in every run (the
+    # step must reach the controller, not be absorbed into its initial state)
+    c0 = _matched_controller(spec, params, op, ref)
+    nominal = _step_run(sc, dtr, op, dataclasses.replace(c0, reference=ref), H)
+    return _StepRuns(t0, H, c0, nominal)
+
+
 def _step_comparison(
     sc: Scenario,
     dtr: Drivetrain,
-    spec: ControllerSpec,
     params: Any,
     op: OperatingPoint,
     cl: ClutchLoop,
     d_rpm: float,
+    shared: _StepRuns,
 ) -> dict[str, Any]:
-    t0 = float(op.t or 0.0)
-    H = min(STEP_HORIZON_S, sc.t_end - t0)
+    t0, H = shared.t0, shared.horizon
     d = d_rpm / _RPM
     ref = sc.reference
-    runs = {}
     if ref is None:  # pragma: no cover - checked by build_report
         raise ValueError(f"scenario {sc.name!r}: no reference")
-    # the controller state is matched to the pedal with the nominal reference in both runs (the
-    # step must reach the controller, not be absorbed into its initial state)
-    c0 = _matched_controller(spec, params, op, ref)
-    for name, r in (("nominal", ref), ("perturbed", ref + step(t0, d))):
-        c = dataclasses.replace(c0, reference=r)
-        runs[name] = simulate(
-            dtr.model,
-            np.array(op.x),
-            sc.input_signals(),
-            t0=t0,
-            t_end=t0 + H,
-            controller=c,
-            controller_initial=op.input("pedal"),
-        )
+    c = dataclasses.replace(shared.controller, reference=ref + step(t0, d))
+    runs = {"nominal": shared.nominal, "perturbed": _step_run(sc, dtr, op, c, H)}
     tg = np.linspace(0.0, H, N_STEP_SAMPLES)
 
     def at(res: Any, name: str) -> F64:
@@ -442,7 +459,7 @@ def _step_comparison(
         causes.append(
             f"saturation: the actuator reaches its stroke limit [{act.x_min}, {act.x_max}] m"
         )
-    es = engine_side(op)
+    es = cl.engine
     if es.mu_slope_torque != 0.0:
         causes.append(
             f"slip-dependent mu: friction slope c = {es.mu_slope_torque:.4g} N m s/rad at the "
@@ -450,12 +467,9 @@ def _step_comparison(
         )
     nom = runs["nominal"]
     iw = dtr.model.state_index("omega_engine")
-    slip0 = op.state("omega_engine") - op.state(
-        "omega_disc" if dtr.kind == "full" else "omega_primary"
-    )
-    slip1 = float(np.asarray(nom.x)[-1, iw]) - float(
-        nom.state("omega_disc" if dtr.kind == "full" else "omega_primary")[-1]
-    )
+    driven = _driven_state(dtr)
+    slip0 = op.state("omega_engine") - op.state(driven)
+    slip1 = float(np.asarray(nom.x)[-1, iw]) - float(nom.state(driven)[-1])
     drift = abs(slip1 - slip0) / max(abs(slip0), 1e-9)
     if drift > 0.25:
         causes.append(
@@ -500,7 +514,7 @@ def _step_comparison(
 def _engagement_series(res: Any, sc: Scenario, dtr: Drivetrain) -> dict[str, Any]:
     T = np.asarray(res.t)
     t = np.arange(0.0, float(T[-1]) + 1e-12, 1.0 / ENGAGEMENT_RATE_HZ)
-    driven = "omega_disc" if dtr.kind == "full" else "omega_primary"
+    driven = _driven_state(dtr)
     ip = dtr.model.input_names.index("pedal")
     ref = sc.reference
     return {
@@ -547,17 +561,16 @@ def build_report(
     outp = Path(out)
     outp.mkdir(parents=True, exist_ok=True)
     dtr = sc.drivetrain(p, kind=kind)
-    res = sc.run(dtr, controller=spec)
+    # built once (as sc.run would build it, warnings included) and simulated as is
+    ctrl = sc.make_controller(dtr, spec)
+    res = sc.run(dtr, controller=ctrl)
     metrics = engagement_metrics(res, dtr, start=sc.start_time, reference=sc.reference)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnstableLoopWarning)
-        ctrl = sc.make_controller(dtr, spec)
     cname = spec.name
 
     # slip mode
     op_s = _slip_point(res, dtr, sc.start_time)
     cl = clutch_loop(op_s, ctrl)
-    slip_entry = _margins_entry(op_s, cl)
+    slip_entry = _margins_entry(cl)
     w = _omega_grid(cl.L)
     tfs = {
         "L": _tf_dict(cl.L),
@@ -580,7 +593,7 @@ def build_report(
     }
     slip_entry["nyquist"] = nyquist_data(cl.L, omega=[float(v) for v in w]).to_dict()
     slip_entry["root_locus"] = _slip_root_loci(op_s, ctrl, cl)
-    slip_entry["engine_side"] = dataclasses.asdict(engine_side(op_s))
+    slip_entry["engine_side"] = dataclasses.asdict(cl.engine)
     slip_entry["discrete"] = cl.discrete
     slip_entry["sample_period_s"] = cl.dt
 
@@ -605,8 +618,10 @@ def build_report(
         lock_entry["breakaway_margins"] = None
         lock_entry["reasons"]["shuffle_modes"] = lock_how
 
+    shared = _nominal_step_run(sc, dtr, spec, p, op_s)
     comparison = {
-        name: _step_comparison(sc, dtr, spec, p, op_s, cl, d) for name, d in STEP_SIZES_RPM.items()
+        name: _step_comparison(sc, dtr, p, op_s, cl, d, shared)
+        for name, d in STEP_SIZES_RPM.items()
     }
     statements = [c["statement"] for c in comparison.values()]
 

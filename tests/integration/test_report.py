@@ -47,6 +47,10 @@ def _check_report(rep, controller: str) -> dict:
     for k in ("L", "S", "T"):
         assert set(slip["bode"][k]) == {"omega", "magnitude_db", "phase_deg"}
         assert set(slip["transfer_functions"][k]) == {"num", "den", "dt"}
+    # linear.trim_tf's leading terms: no spurious leading zero in any numerator or denominator
+    for k, tf in slip["transfer_functions"].items():
+        assert tf["den"][0] != 0.0, k
+        assert tf["num"][0] != 0.0 or tf["num"] == [0.0], k
     assert slip["nyquist"]["real"] and slip["root_locus"]["gain"]["points"]
     assert slip["root_locus"]["mu_slope"]["points"]
     lock = data["modes"]["lock"][controller]
@@ -123,3 +127,26 @@ def test_report_bad_arguments(tmp_path):
 def test_report_full_model(tmp_path):
     rep = build_report(controller="paper", model="full", out=tmp_path)
     _check_report(rep, "paper")
+
+
+def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
+    """The nominal run of the step comparison is shared by the step sizes, and the scenario's
+    controller is built once (plus the state-matched copy for the step runs)."""
+    from drivetrain_ctrl import report as R
+    from drivetrain_ctrl.controllers import ControllerSpec
+
+    calls = {"simulate": 0, "build": 0}
+    sim, build = R.simulate, ControllerSpec.build
+
+    def counting_simulate(*a, **kw):
+        calls["simulate"] += 1
+        return sim(*a, **kw)
+
+    def counting_build(self, *a, **kw):
+        calls["build"] += 1
+        return build(self, *a, **kw)
+
+    monkeypatch.setattr(R, "simulate", counting_simulate)
+    monkeypatch.setattr(ControllerSpec, "build", counting_build)
+    R.build_report(controller="paper", out=tmp_path)
+    assert calls == {"simulate": 1 + len(R.STEP_SIZES_RPM), "build": 2}

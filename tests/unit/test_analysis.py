@@ -13,7 +13,7 @@ import scipy.optimize
 from drivetrain_ctrl import analysis as A
 from drivetrain_ctrl import linear as L
 from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.closedloop import law6_controller, pi_controller
+from drivetrain_ctrl.closedloop import Actuator, law6_controller, pi_controller
 from drivetrain_ctrl.drivetrain import reduced_model
 from drivetrain_ctrl.params import default_params
 
@@ -209,3 +209,102 @@ def test_trim_tf_drops_round_off_leading_numerator_terms_in_discrete_time() -> N
     # a genuine (non-zero Markov parameter) small leading coefficient is kept
     biproper = control.ss(control.tf([1e-8, 1.0, 1.0], [1.0, 2.0, 1.0]))
     assert len(L.trim_tf(biproper).num[0][0]) == 3
+
+
+def test_freq_is_the_pointwise_evaluation() -> None:
+    """The vectorised frequency response equals L evaluated point by point (continuous and
+    discrete, transfer function and state space)."""
+    w = np.logspace(-2, 2, 37)
+    for sys in (
+        _textbook(1.0),
+        control.ss(_textbook(1.0)),
+        control.tf([1.0, 2.0], [1.0, 3.0, 2.0, 1.0], 0.01),
+    ):
+        dt = A._dt_of(sys)
+        s = np.exp(1j * w * dt) if dt else 1j * w
+        assert np.array_equal(A._freq(sys, w), np.array([complex(sys(x)) for x in s]))
+
+
+@pytest.mark.parametrize(
+    ("omega", "match"),
+    [
+        ([1.0, float("nan"), 3.0], "finite"),
+        ([1.0, float("inf")], "finite"),
+        ([0.0, 1.0], "> 0"),
+        ([-1.0, 1.0], "> 0"),
+        ([1.0, 3.0, 2.0], "strictly increasing"),
+        ([1.0, 1.0, 2.0], "strictly increasing"),
+        ([1.0], "1-D grid"),
+        ([[1.0, 2.0]], "1-D grid"),
+        (["a", "b"], "omega"),
+    ],
+)
+def test_bad_omega_grid_is_rejected(omega, match):
+    for f in (A.loop_margins, A.nyquist_data):
+        with pytest.raises(ValueError, match=match) as exc:
+            f(_textbook(1.0), omega=omega)
+        assert "omega" in str(exc.value)
+
+
+def test_nyquist_data_checks_its_loop():
+    with pytest.raises(TypeError, match="L: a python-control LTI"):
+        A.nyquist_data([1, 2])  # type: ignore[arg-type]
+    mimo = control.ss(np.eye(2) * -1.0, np.eye(2), np.eye(2), np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="L: must be SISO"):
+        A.nyquist_data(mimo)
+    with pytest.raises(ValueError, match="L: must be SISO"):
+        A.loop_margins(mimo)
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.01, float("nan"), float("inf"), True, "0.01"])
+def test_poles_of_rejects_a_bad_sample_period(dt):
+    with pytest.raises(ValueError, match="dt = "):
+        A.poles_of([0.5 + 0.1j], dt)  # type: ignore[arg-type]
+
+
+def test_poles_of_maps_discrete_poles():
+    (p,) = A.poles_of([math.exp(-2.0 * 0.01)], 0.01)
+    assert p.real == pytest.approx(-2.0) and p.damping == pytest.approx(1.0)
+    assert A.poles_of([-2.0]) == A.poles_of([-2.0], None)
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        [],
+        [1e-4, float("nan")],
+        [1e-4, float("inf")],
+        [[1e-4, 2e-4]],
+        1e-4,
+        "1e-4",
+        ["1e-4"],
+        np.array([[1e-4]]),
+        np.array(1e-4),
+        None,
+    ],  # fmt: skip
+)
+def test_root_locus_rejects_bad_values(values):
+    with pytest.raises(ValueError, match="values = "):
+        A.root_locus(_slip(), _law6(), parameter="k_r", values=values)
+
+
+def test_root_locus_accepts_arrays_and_iterables():
+    a = A.root_locus(_slip(), _law6(), parameter="k_r", values=np.array([1e-4, 3e-4]))
+    b = A.root_locus(_slip(), _law6(), parameter="k_r", values=(v for v in (1e-4, 3e-4)))
+    assert a.to_dict() == b.to_dict()
+
+
+@pytest.mark.parametrize(("parameter", "values"), [("k_r", [1e-4, 3e-4]), ("omega_a", [50.0])])
+def test_root_locus_with_the_plant_linearised_once_equals_slip_mode_poles(parameter, values):
+    """k_r and omega_a only change the controller: the locus reuses one linearisation and gives
+    the poles of :func:`linear.slip_mode_poles` with each controller."""
+    import dataclasses
+
+    op, c = _slip(), _law6()
+    rl = A.root_locus(op, c, parameter=parameter, values=values)
+    for v, pt in zip(values, rl.points, strict=True):
+        if parameter == "k_r":
+            cv = dataclasses.replace(c, lti=control.ss([], [], [], [[v]]))
+        else:
+            cv = dataclasses.replace(c, actuator=Actuator(v, c.actuator.delta))
+        assert pt.poles == A.poles_of(L.slip_mode_poles(op, cv))

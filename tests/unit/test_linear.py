@@ -443,3 +443,117 @@ def test_every_visited_mode_is_linearised_inside_its_interval() -> None:
             assert v.op.t is not None and res.t[0] < v.op.t < res.t[-1]
         locked = [v for v in vm if "clutch=stuck" in v.label and "backlash=contact+" in v.label]
         assert locked and locked[0].natural_frequencies_hz[0] == pytest.approx(3.1, abs=0.2)
+
+
+# -- review: reuse and bad input ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("mu_slope", [None, -2e-3])
+def test_clutch_loop_pieces_are_the_public_transfer_functions(mu_slope):
+    """clutch_loop builds x_c -> tau_13, tau_13 -> omega_1 and theta -> omega_1 with the public
+    functions (from its EngineSide); the mu-slope override does not change them."""
+    op = _slip()
+    loop = L.clutch_loop(op, _law6(), mu_slope=mu_slope)
+    for got, ref in (
+        (loop.x_c_to_tau13, L.pedal_to_clutch_torque(op)),
+        (loop.tau13_to_omega1, L.clutch_torque_to_engine_speed(op)),
+        (loop.theta_to_omega1, L.throttle_to_engine_speed(op)),
+    ):
+        assert np.array_equal(got.num[0][0], ref.num[0][0])
+        assert np.array_equal(got.den[0][0], ref.den[0][0])
+    assert list(loop.x_c_to_tau13.input_labels) == ["x_c"]
+    assert list(loop.tau13_to_omega1.output_labels) == ["omega_engine"]
+    assert loop.source is not None
+
+
+def test_judder_threshold_reuses_a_given_loop():
+    op, ctrl = _slip(), _law6()
+    loop = L.clutch_loop(op, ctrl)
+    assert L.judder_threshold(op, ctrl, loop=loop) == L.judder_threshold(op, ctrl)
+    with pytest.raises(ValueError, match="loop: not clutch_loop"):
+        L.judder_threshold(op, _law6(), loop=loop)  # another controller object
+    with pytest.raises(ValueError, match="loop: not clutch_loop"):
+        L.judder_threshold(_slip(omega_driven=90.0), ctrl, loop=loop)
+    with pytest.raises(ValueError, match="loop: not clutch_loop"):
+        L.judder_threshold(op, ctrl, loop=L.clutch_loop(op, ctrl, mu_slope=-1e-3))
+    with pytest.raises(ValueError, match="loop: given without a controller"):
+        L.judder_threshold(op, None, loop=loop)
+
+
+def test_linearise_rejects_a_bare_string():
+    op = _slip()
+    with pytest.raises(ValueError, match=r"outputs = 'tau_13': a sequence of names"):
+        L.linearise(op, outputs="tau_13")
+    with pytest.raises(ValueError, match=r"inputs = 'x_c': a sequence of names"):
+        L.linearise(op, inputs="x_c")
+    assert L.linearise(op, outputs=["tau_13"]).noutputs == 1
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("J", 0.0, "J = 0.0: must be > 0"),
+        ("m", -1.0, "m = -1.0: must be > 0"),
+        ("h", float("nan"), "h = nan: must be a finite number"),
+        ("b", -0.1, "b = -0.1: a damping"),
+        ("e", float("inf"), "e = inf: must be a finite number"),
+        ("J", "0.1", "J = '0.1': must be a finite number"),
+    ],
+)
+def test_shuffle_speed_source_threshold_bad_fields(field, value, match):
+    kw = {"J": 0.1, "m": 10.0, "h": 500.0, "b": 1.0, "e": 0.5}
+    L.shuffle_speed_source_threshold(**kw)
+    kw[field] = value
+    with pytest.raises(ValueError, match=match):
+        L.shuffle_speed_source_threshold(**kw)
+
+
+def test_shuffle_speed_source_threshold_needs_some_damping():
+    with pytest.raises(ValueError, match=r"b \+ e must be > 0"):
+        L.shuffle_speed_source_threshold(J=0.1, m=10.0, h=500.0, b=0.0, e=0.0)
+    d, w = L.shuffle_speed_source_threshold(J=0.1, m=10.0, h=500.0, b=1.0, e=0.0)
+    assert math.isfinite(d) and w > 0
+
+
+@pytest.mark.parametrize("bad", ["x", None, float("nan"), True])
+def test_linearise_visited_modes_rejects_a_non_number(bad):
+    import types
+
+    res = types.SimpleNamespace(t=np.array([0.0, 1.0]))
+    with pytest.raises(ValueError, match="min_duration = "):
+        L.linearise_visited_modes(res, min_duration=bad)
+    with pytest.raises(ValueError, match="min_duration = -1.0"):
+        L.linearise_visited_modes(res, min_duration=-1.0)
+
+
+def test_actuator_none_is_a_type_error():
+    with pytest.raises(TypeError, match="actuator: an Actuator is needed, got NoneType"):
+        L.actuator_tf(None)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="actuator: an Actuator is needed, got NoneType"):
+        L.law6_loop_closed_form(
+            k_r=1e-3, dk13_dxc=-3000.0, mu=1.0, J1=0.2, b1_eff=0.1, actuator=None
+        )  # type: ignore[arg-type]
+
+
+def test_rebuild_operating_point_needs_params():
+    op = _slip()
+    with pytest.raises(TypeError, match="params: a DrivetrainParams is needed, got dict"):
+        L.rebuild_operating_point(op, {"engine.J1": 0.3})
+    assert L.rebuild_operating_point(op, P).state("omega_engine") == op.state("omega_engine")
+
+
+def test_operating_points_reject_negative_brake_and_pedal_outside_the_map():
+    dt = reduced_model(P)
+    lo, hi = P.clutch.pedal_map.x[0], P.clutch.pedal_map.x[-1]
+    kw = {"omega_engine": 150.0, "omega_driven": 100.0, "throttle": 0.5}
+    with pytest.raises(ValueError, match="brake = -1.0"):
+        L.slip_operating_point(dt, x_c=XC, brake=-1.0, **kw)
+    with pytest.raises(ValueError, match="brake = -1.0"):
+        L.locked_trim(dt, vehicle_speed_kmh=25.0, brake=-1.0)
+    for xc in (lo - 1e-3, hi + 1e-3, -0.5):
+        with pytest.raises(ValueError, match=rf"x_c = {xc!r} m: outside the pedal map's range"):
+            L.slip_operating_point(dt, x_c=xc, **kw)
+        with pytest.raises(ValueError, match=rf"x_c = {xc!r} m: outside the pedal map's range"):
+            L.locked_trim(dt, vehicle_speed_kmh=25.0, x_c=xc)
+    # the ends of the map are inside
+    assert L.locked_trim(dt, vehicle_speed_kmh=25.0, x_c=lo).clutch_mode == "stuck"
