@@ -20,7 +20,7 @@ import numbers
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,9 +101,11 @@ class SimulationOptions:
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be an integer >= 2")
 
 
-@dataclass(frozen=True, slots=True)
-class Event:
-    """A mode change: time [s], element name, from-mode and to-mode names."""
+class Event(NamedTuple):
+    """A mode change: time [s], element name, from-mode and to-mode names.
+
+    A named tuple (immutable; built hundreds of times per run, where a frozen dataclass's
+    ``__init__`` cost about 1 us each)."""
 
     t: float
     element: str
@@ -296,6 +298,23 @@ def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
     return ti.name, f"segment {code}"
 
 
+def _events(model: Model, evt: F64, evel: NDArray[np.int64], evf: NDArray[np.int64],
+            evto: NDArray[np.int64]) -> tuple[Event, ...]:  # fmt: skip
+    """The kernel's event arrays as :class:`Event` s (names looked up once per element and
+    mode code: engage-ramp has some 230 events)."""
+    names: dict[tuple[int, int], tuple[str, str]] = {}
+    out = []
+    for te, el, a, b in zip(evt.tolist(), evel.tolist(), evf.tolist(), evto.tolist(), strict=True):
+        na = names.get((el, a))
+        if na is None:
+            na = names[(el, a)] = _element_mode_name(model, el, a)
+        nb = names.get((el, b))
+        if nb is None:
+            nb = names[(el, b)] = _element_mode_name(model, el, b)
+        out.append(Event(te, na[0], na[1], nb[1]))
+    return tuple(out)
+
+
 def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
     unknown = set(inputs) - set(model.input_names)
     if unknown:
@@ -414,10 +433,7 @@ def simulate(
     nx = model.nx
     nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
-    events = []
-    for te, el, a, b in zip(evt.tolist(), evel.tolist(), evf.tolist(), evto.tolist(), strict=True):
-        name, mode_a = _element_mode_name(model, el, a)
-        events.append(Event(te, name, mode_a, _element_mode_name(model, el, b)[1]))
+    events = _events(model, evt, evel, evf, evto)
     stat = _STATUS.get(int(status), str(status))
     res = SimulationResult(
         model=model,
@@ -426,7 +442,7 @@ def simulate(
         u=np.ascontiguousarray(U[:, :nu]),
         fm=FM,
         reg=RG,
-        events=tuple(events),
+        events=events,
         work_in=Y[:, nxs] if opts.energy else None,
         dissipated=Y[:, nxs + 1 :] if opts.energy else None,
         status=stat,

@@ -15,7 +15,7 @@ from drivetrain_ctrl.drivetrain import Drivetrain
 from drivetrain_ctrl.model import Model
 from drivetrain_ctrl.params import default_params
 from drivetrain_ctrl.scenarios import builtin_scenarios
-from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate
+from drivetrain_ctrl.simulate import Event, SimulationOptions, SimulationResult, simulate
 
 
 @functools.cache
@@ -100,6 +100,18 @@ def test_events_dataframe_matches_events() -> None:
         if e.element in modes:
             assert {e.from_mode, e.to_mode} <= modes[e.element]
             assert e.from_mode != e.to_mode
+
+
+def test_events_are_immutable_and_name_table_regions() -> None:
+    res = tip_in()
+    assert all(isinstance(e, Event) for e in res.events)
+    with pytest.raises(AttributeError):
+        res.events[0].t = 0.0  # type: ignore[misc]
+    backlash = [e for e in res.events if e.element == "backlash"]
+    assert backlash, "tip-in crosses the backlash gap"
+    for e in backlash:
+        assert {e.from_mode, e.to_mode} <= {"contact-", "gap", "contact+"}
+        assert e.from_mode != e.to_mode
 
 
 def test_events_are_consistent_with_mode_series() -> None:
