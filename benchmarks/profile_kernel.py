@@ -1,0 +1,249 @@
+"""Where does the simulator's time go? A cycle-counter profile of an instrumented kernel copy.
+
+Usage::
+
+    python benchmarks/profile_kernel.py [--repeats N] [--keep DIR]
+
+Numba's compiled code has no symbols a sampling profiler could use, so this script copies the
+package into a temporary directory, inserts reads of the CPU's cycle counter
+(``llvm.readcyclecounter``) around the parts of ``simulate_kernel`` (the step loop ``_advance``,
+the event location ``_locate``, the mode decisions ``_redecide``, the first derivative after an
+event, the tight stability bound of a new mode) and counts the Illinois iterations of the event
+location, compiles that copy (a few minutes: its own numba cache, the installed package is not
+touched) and runs the full-model ``engage-ramp`` and ``tip-in`` in a subprocess. For each scenario
+it prints the share of the kernel's time-stamp-counter ticks (cycles at a constant rate) per part (the repeat with the fewest cycles) and the
+cycles per event location and per mode decision.
+
+The patch is a set of exact text replacements in ``kernels.py``; if one does not apply (the
+kernel changed), the script stops and names it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+_INTRINSIC = """from numba.typed import Dict
+from numba.extending import intrinsic as _intrinsic
+from numba.core import cgutils as _cgutils
+from llvmlite import ir as _ir
+
+
+@_intrinsic
+def rdtsc(typingctx):
+    sig = types.float64()
+
+    def codegen(context, builder, signature, args):
+        fnty = _ir.FunctionType(_ir.IntType(64), [])
+        fn = _cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
+        return builder.uitofp(builder.call(fn, []), _ir.DoubleType())
+
+    return sig, codegen
+"""
+
+#: (name, old text, new text, expected count); prof[0..4]: cycles in advance, locate, redecide,
+#: rhs after an event, tight stability bound; prof[5]: total; 6, 7, 8: locates, decisions, iters
+_PATCHES: list[tuple[str, str, str, int]] = [
+    ("imports", "from numba.typed import Dict\n", _INTRINSIC, 1),
+    (
+        "locate signature",
+        '    ys,\n    yhi,\n):  # type: ignore[no-untyped-def]\n    """Locate the event',
+        '    ys,\n    yhi,\n    prof,\n):  # type: ignore[no-untyped-def]\n    """Locate the event',
+        1,
+    ),
+    (
+        "locate iterations",
+        "        dense_eval(rc, s, ys)\n        _guards_step_inl(",
+        "        prof[8] += 1.0\n        dense_eval(rc, s, ys)\n        _guards_step_inl(",
+        1,
+    ),
+    (
+        "locate start",
+        "            hi, j = _locate(",
+        "            c0 = rdtsc()\n            hi, j = _locate(",
+        1,
+    ),
+    (
+        "locate end",
+        "                ys,\n                yhi,\n            )\n            t = t + hi * hh",
+        "                ys,\n                yhi,\n                prof,\n            )\n"
+        "            prof[1] += rdtsc() - c0\n            prof[6] += 1.0\n            t = t + hi * hh",
+        1,
+    ),
+    (
+        "redecide start",
+        "            slot, nb, h_stab, stab_exact, n_ev = _redecide(",
+        "            c0 = rdtsc()\n            prof[7] += 1.0\n"
+        "            slot, nb, h_stab, stab_exact, n_ev = _redecide(",
+        2,
+    ),
+    (
+        "redecide end",
+        "            )  # fmt: skip\n            n_incons += nb",
+        "            )  # fmt: skip\n            prof[2] += rdtsc() - c0\n            n_incons += nb",
+        2,
+    ),
+    (
+        "rhs after event start",
+        "            full_rhs_call(\n                D,",
+        "            c0 = rdtsc()\n            full_rhs_call(\n                D,",
+        2,
+    ),
+    (
+        "rhs after event end",
+        "            Ks[0, :] = dy\n            nfev += 1\n",
+        "            Ks[0, :] = dy\n            prof[3] += rdtsc() - c0\n            nfev += 1\n",
+        2,
+    ),
+    (
+        "advance start",
+        "        code = _advance(",
+        "        c0 = rdtsc()\n        code = _advance(",
+        1,
+    ),
+    (
+        "advance end",
+        "        t = fs[0]\n        h = fs[1]\n        lerr_old = fs[2]\n        n_steps = ist[1]",
+        "        prof[0] += rdtsc() - c0\n"
+        "        t = fs[0]\n        h = fs[1]\n        lerr_old = fs[2]\n        n_steps = ist[1]",
+        1,
+    ),
+    (
+        "stability bound",
+        "            h_stab = stable_step_exact(fm, reg, hcache, jcache)\n",
+        "            c0 = rdtsc()\n            h_stab = stable_step_exact(fm, reg, hcache, jcache)\n"
+        "            prof[4] += rdtsc() - c0\n",
+        1,
+    ),
+    (
+        "counters",
+        "    ist = np.zeros(8, dtype=np.int64)\n",
+        "    ist = np.zeros(8, dtype=np.int64)\n    prof = np.zeros(10)\n    c_start = rdtsc()\n",
+        1,
+    ),
+    (
+        "total",
+        "    n_knee = 0\n    for e in range(n_ev):",
+        "    prof[5] = rdtsc() - c_start\n    n_knee = 0\n    for e in range(n_ev):",
+        1,
+    ),
+    (
+        "return",
+        "        n_knee,\n        n_incons,\n    )",
+        "        n_knee,\n        n_incons,\n        prof,\n    )",
+        1,
+    ),
+]
+
+_RUNNER = r"""
+import sys
+import numpy as np
+from drivetrain_ctrl import kernels as K
+from drivetrain_ctrl import simulate as SM
+from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.scenarios import builtin_scenarios
+
+captured = {}
+orig = K.simulate_kernel
+
+
+def wrapped(*args):
+    out = orig(*args)
+    captured["prof"] = out[-1]
+    return out[:-1]
+
+
+SM.K.simulate_kernel = wrapped
+repeats = int(sys.argv[1])
+p = default_params()
+labels = ["step loop (_advance)", "event location (_locate)", "mode decisions (_redecide)",
+          "derivative after an event", "tight stability bound (new mode)"]
+for name in ("engage-ramp", "tip-in"):
+    sc = builtin_scenarios(p)[name]
+    dt = sc.drivetrain(p, kind="full")
+    x0 = sc.initial_state(dt)
+    best = None
+    for _ in range(repeats):
+        res = SM.simulate(dt.model, x0, sc.input_signals(), t_end=sc.t_end)
+        pr = captured["prof"].copy()
+        if best is None or pr[5] < best[0][5]:
+            best = (pr, res.stats)
+    pr, st = best
+    tot = pr[5]
+    print(f"{name}: {tot:.3g} cycles in the kernel ({st['steps']} steps, {st['rejected']} "
+          f"rejected, {len(res.events)} events; fewest cycles of {repeats} runs)")
+    for i, lab in enumerate(labels):
+        print(f"  {lab:36s} {100 * pr[i] / tot:5.1f} %")
+    print(f"  {'the rest':36s} {100 * (tot - pr[:5].sum()) / tot:5.1f} %")
+    n_loc, n_dec, n_it = pr[6], pr[7], pr[8]
+    print(f"  per accepted or rejected step in the loop: "
+          f"{pr[0] / (st['steps'] + st['rejected']):.0f} cycles; per event location "
+          f"{pr[1] / max(n_loc, 1):.0f} cycles ({n_it / max(n_loc, 1):.1f} Illinois iterations); "
+          f"per mode decision {pr[2] / max(n_dec, 1):.0f} cycles")
+"""
+
+
+def patched_copy(dest: Path) -> None:
+    """Copy ``drivetrain_ctrl`` to ``dest`` and instrument its ``kernels.py``."""
+    pkg = dest / "drivetrain_ctrl"
+    shutil.copytree(
+        ROOT / "drivetrain_ctrl",
+        pkg,
+        ignore=shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc"),
+    )
+    path = pkg / "kernels.py"
+    src = path.read_text()
+    for name, old, new, count in _PATCHES:
+        got = src.count(old)
+        if got != count:
+            raise SystemExit(
+                f"patch {name!r}: expected {count} occurrence(s) in kernels.py, found {got}; "
+                "update benchmarks/profile_kernel.py to the current kernel"
+            )
+        src = src.replace(old, new)
+    path.write_text(src)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument(
+        "--repeats", type=int, default=15, help="runs per scenario (the fastest counts)"
+    )
+    ap.add_argument("--keep", type=Path, default=None, help="build the copy here and keep it")
+    a = ap.parse_args(argv)
+    if a.repeats < 1:
+        ap.error(f"--repeats = {a.repeats}: must be >= 1")
+    tmp = None
+    if a.keep is None:
+        tmp = tempfile.TemporaryDirectory(prefix="dtc-profile-")
+        dest = Path(tmp.name)
+    else:
+        dest = a.keep
+        dest.mkdir(parents=True, exist_ok=True)
+        if (dest / "drivetrain_ctrl").exists():
+            shutil.rmtree(dest / "drivetrain_ctrl")
+    try:
+        patched_copy(dest)
+        print(
+            f"instrumented copy in {dest}; compiling it (a few minutes) and running ...", flush=True
+        )
+        env = dict(os.environ, PYTHONPATH=str(dest))
+        r = subprocess.run(
+            [sys.executable, "-c", _RUNNER, str(a.repeats)], env=env, cwd=dest, check=False
+        )
+        return r.returncode
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
