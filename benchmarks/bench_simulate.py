@@ -38,7 +38,7 @@ import tempfile
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -47,8 +47,10 @@ sys.path.insert(0, str(HERE))
 
 import baselines as B  # noqa: E402
 
-from drivetrain_ctrl.params import default_params  # noqa: E402
-from drivetrain_ctrl.scenarios import load_scenario  # noqa: E402
+from drivetrain_ctrl.drivetrain import Drivetrain  # noqa: E402
+from drivetrain_ctrl.params import DrivetrainParams, default_params  # noqa: E402
+from drivetrain_ctrl.scenarios import Scenario, load_scenario  # noqa: E402
+from drivetrain_ctrl.signals import Signal  # noqa: E402
 from drivetrain_ctrl.simulate import SimulationOptions, simulate  # noqa: E402
 
 SCENARIOS = ("engage-ramp", "tip-in")
@@ -164,13 +166,36 @@ def ours_events(res: Any) -> list[Ev]:
     return [(e.t, e.element, e.from_mode, e.to_mode) for e in res.events]
 
 
-def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
+class Setup(NamedTuple):
+    """A built-in scenario on the default parameters: our full model and the flat baselines'."""
+
+    params: DrivetrainParams
+    sc: Scenario
+    dt: Drivetrain
+    x0: Any
+    inputs: dict[str, Signal]
+    fast: B.FastFlatSystem
+
+
+def scenario_setup(name: str) -> Setup:
+    """The scenario ``name``, its full model, initial state, inputs and fast flat system."""
     params = default_params()
     sc = load_scenario(name)
-    dtr = sc.drivetrain(params)
-    x0 = sc.initial_state(dtr)
-    inputs = sc.input_signals()
-    fast = B.FastFlatSystem(params, sc.gear, sc.slope)
+    dt = sc.drivetrain(params)
+    return Setup(
+        params, sc, dt, sc.initial_state(dt), sc.input_signals(),
+        B.FastFlatSystem(params, sc.gear, sc.slope),
+    )  # fmt: skip
+
+
+def run_tanh(s: Setup) -> B.Run:
+    """Baseline B: the tanh-smoothed model with scipy LSODA (eps 1e-3, rtol 1e-6, atol 1e-9)."""
+    return B.simulate_tanh(s.fast, s.x0, s.inputs, s.sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9)
+
+
+def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
+    setup = scenario_setup(name)
+    params, sc, dtr, x0, inputs, fast = setup
     out: dict[str, Any] = {"t_end": sc.t_end, "gear": sc.gear, "slope": sc.slope}
     print(f"\n=== {name} ===", flush=True)
 
@@ -279,7 +304,7 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
         )
 
     def run_b() -> B.Run:
-        return B.simulate_tanh(fast, x0, inputs, sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9)
+        return run_tanh(setup)
 
     def run_ours_once(opts: SimulationOptions) -> tuple[float, Any]:
         tic = time.perf_counter()

@@ -11,8 +11,8 @@ For the full-model ``engage-ramp`` and ``tip-in`` at the default options it meas
   (eigenvalues of the mode's Jacobian, numpy), and Dormand-Prince 5(4)'s true stability limit
   along the ray of the fastest eigenvalue (``|R(z)| <= 1``; on the imaginary axis the method is
   not stable beyond ``|z|`` of about 1, so a lightly damped mode is the worst case);
-* the wall time per accepted step of our simulator and the time of the smoothed baseline (scipy
-  LSODA, tanh friction, as in ``bench_simulate.py``), interleaved, medians;
+* the wall time per accepted step of our simulator and the time of the smoothed baseline
+  (``bench_simulate.run_tanh``: scipy LSODA, tanh friction), interleaved, medians;
 * the consequence: with ``h_max`` bounding every step (the simulator does not step over stick
   episodes longer than ``h_max``), a run takes at least ``t_end / h_max`` steps; at today's cost
   per step that is the fastest a run of this design can be, and ``tanh time / that`` is the
@@ -37,11 +37,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-import baselines as B  # noqa: E402
+from bench_simulate import run_tanh, scenario_setup  # noqa: E402
 
 from drivetrain_ctrl import kernels as K  # noqa: E402
-from drivetrain_ctrl.params import default_params  # noqa: E402
-from drivetrain_ctrl.scenarios import load_scenario  # noqa: E402
 from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate  # noqa: E402
 
 #: Dormand-Prince 5(4) tableau (the fifth-order solution's weights are the last row)
@@ -97,20 +95,16 @@ def mode_eigs(res: SimulationResult) -> list[complex]:
 
 
 def analyse(name: str, repeats: int) -> dict[str, Any]:
-    params = default_params()
-    sc = load_scenario(name)
-    dt = sc.drivetrain(params)
-    x0 = sc.initial_state(dt)
-    inputs = sc.input_signals()
+    setup = scenario_setup(name)
+    sc, dt, x0, inputs = setup.sc, setup.dt, setup.x0, setup.inputs
     opts = SimulationOptions()
-    fast = B.FastFlatSystem(params, sc.gear, sc.slope)
 
     res = simulate(dt.model, x0, inputs, t_end=sc.t_end, options=opts)  # warm-up, and the steps
     t_ours: list[float] = []
     t_tanh: list[float] = []
     for _ in range(repeats):  # interleaved: the machine is shared and its load drifts
         tic = time.perf_counter()
-        B.simulate_tanh(fast, x0, inputs, sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9)
+        run_tanh(setup)
         t_tanh.append(time.perf_counter() - tic)
         for _ in range(5):
             tic = time.perf_counter()
