@@ -7,6 +7,8 @@ Usage::
 For the full-model ``engage-ramp`` and ``tip-in`` at the default options it measures, in one run:
 
 * the accepted steps by size, and the share of simulated time spent in each size class;
+* the fastest eigenvalue of the modes whose stability bound is below ``h_max`` (frequency and
+  damping ratio: the gear mesh);
 * each step against its mode's stability bound ``h_stab = STABILITY_FACTOR / |lambda_max|``
   (eigenvalues of the mode's Jacobian, numpy), and Dormand-Prince 5(4)'s true stability limit
   along the ray of the fastest eigenvalue (``|R(z)| <= 1``; on the imaginary axis the method is
@@ -136,6 +138,9 @@ def analyse(name: str, repeats: int) -> dict[str, Any]:
     for lam, hi in zip(lams, h, strict=True):
         fast_lams[lam] = fast_lams.get(lam, 0.0) + float(hi)
     lam_main = max(fast_lams, key=lambda v: fast_lams[v])
+    # the fastest eigenvalues of the visited modes where the stability bound is below h_max
+    stiff = [v for v in fast_lams if K.STABILITY_FACTOR / abs(v) < opts.h_max]
+    zetas = [-v.real / abs(v) for v in stiff]
     limit = dp5_limit_along(lam_main)
     min_steps = int(np.ceil((sc.t_end - 0.0) / opts.h_max))
     per_step = ours_s / steps
@@ -156,6 +161,14 @@ def analyse(name: str, repeats: int) -> dict[str, Any]:
         "dominant_fast_eigenvalue": [lam_main.real, lam_main.imag],
         "dominant_fast_eigenvalue_time_s": fast_lams[lam_main],
         "damping_ratio_of_it": -lam_main.real / abs(lam_main),
+        "stiff_modes": len(stiff),
+        "stiff_damping_ratio_range": [min(zetas), max(zetas)] if stiff else None,
+        "stiff_abs_lambda_hz_range": [
+            min(abs(v) for v in stiff) / (2 * np.pi),
+            max(abs(v) for v in stiff) / (2 * np.pi),
+        ]
+        if stiff
+        else None,
         "dp5_stability_limit_along_its_ray": limit,
         "dp5_stability_limit_imaginary_axis": dp5_limit_along(1j),
         "ours_median_s": ours_s,
@@ -199,6 +212,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{r['dp5_stability_limit_imaginary_axis']:.2f}), bound used "
             f"{r['stability_factor']}"
         )
+        if r["stiff_modes"]:
+            zr = r["stiff_damping_ratio_range"]
+            fr = r["stiff_abs_lambda_hz_range"]
+            print(
+                f"  {r['stiff_modes']} visited modes have a stability bound below h_max: their "
+                f"fastest eigenvalue {fr[0]:.0f}-{fr[1]:.0f} Hz (|lambda| / 2 pi), damping ratio "
+                f"{zr[0]:.3f}-{zr[1]:.3f}"
+            )
         print(
             f"  ours {1e3 * r['ours_median_s']:.2f} ms ({1e6 * r['ours_s_per_step']:.2f} us a step)"
             f", tanh LSODA {1e3 * r['tanh_lsoda_median_s']:.0f} ms: {r['speedup_vs_tanh']:.0f}x; "
