@@ -8,11 +8,12 @@ Numba's compiled code has no symbols a sampling profiler could use, so this scri
 package into a temporary directory, inserts reads of the CPU's cycle counter
 (``llvm.readcyclecounter``) around the parts of ``simulate_kernel`` (the step loop ``_advance``,
 the event location ``_locate``, the mode decisions ``_redecide``, the first derivative after an
-event, the tight stability bound of a new mode) and counts the Illinois iterations of the event
-location, compiles that copy (a few minutes: its own numba cache, the installed package is not
-touched) and runs the full-model ``engage-ramp`` and ``tip-in`` in a subprocess. For each scenario
-it prints the share of the kernel's time-stamp-counter ticks (cycles at a constant rate) per part (the repeat with the fewest cycles) and the
-cycles per event location and per mode decision.
+event or a stop, the tight stability bound of a new mode) and counts the Illinois iterations of
+the event location, compiles that copy (a few minutes: its own numba cache, the installed package
+is not touched) and runs the full-model ``engage-ramp`` and ``tip-in`` in a subprocess. For each
+scenario it prints the share of the kernel's time-stamp-counter ticks (cycles at a constant rate)
+per part (the repeat with the fewest ticks) and the ticks per step, event location and mode
+decision.
 
 The patch is a set of exact text replacements in ``kernels.py``; if one does not apply (the
 kernel changed), the script stops and names it.
@@ -92,16 +93,16 @@ _PATCHES: list[tuple[str, str, str, int]] = [
         2,
     ),
     (
-        "rhs after event start",
+        "rhs after event or stop: start",
         "            full_rhs_call(\n                D,",
         "            c0 = rdtsc()\n            full_rhs_call(\n                D,",
-        2,
+        1,
     ),
     (
-        "rhs after event end",
+        "rhs after event or stop: end",
         "            Ks[0, :] = dy\n            nfev += 1\n",
         "            Ks[0, :] = dy\n            prof[3] += rdtsc() - c0\n            nfev += 1\n",
-        2,
+        1,
     ),
     (
         "advance start",
@@ -165,7 +166,7 @@ SM.K.simulate_kernel = wrapped
 repeats = int(sys.argv[1])
 p = default_params()
 labels = ["step loop (_advance)", "event location (_locate)", "mode decisions (_redecide)",
-          "derivative after an event", "tight stability bound (new mode)"]
+          "derivative after an event or stop", "tight stability bound (new mode)"]
 for name in ("engage-ramp", "tip-in"):
     sc = builtin_scenarios(p)[name]
     dt = sc.drivetrain(p, kind="full")

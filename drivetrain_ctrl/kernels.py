@@ -2219,6 +2219,15 @@ def _redecide(  # type: ignore[no-untyped-def]
     return slot, nb, h_stab, stab_exact, n_ev
 
 
+@jit_inline
+def _zeno_push(ring, pos, t, window):  # type: ignore[no-untyped-def]
+    """Record an event at ``t`` in the ring of the last ``len(ring)`` event times (next slot
+    ``pos``); returns ``(next pos, True if all of them lie within window [s] of t)``."""
+    ring[pos] = t
+    pos = (pos + 1) % ring.shape[0]
+    return pos, t - ring[pos] < window
+
+
 @jit
 def _grow(T, Y, U, FM, RG, n_rec):  # type: ignore[no-untyped-def]
     """The output arrays with twice the room, the first ``n_rec`` rows copied."""
@@ -2501,16 +2510,14 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             )  # fmt: skip
             n_incons += nb
             for e in range(n_old, n_ev):
-                zeno_ring[zeno_pos] = t
-                zeno_pos = (zeno_pos + 1) % zeno_count
-                if t - zeno_ring[zeno_pos] < zeno_window:
+                zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
+                if hit:
                     status = ZENO
                     status_el = ev_el[e]
             if j >= n_guards(D):
                 # a controller guard: count it for the Zeno check too
-                zeno_ring[zeno_pos] = t
-                zeno_pos = (zeno_pos + 1) % zeno_count
-                if t - zeno_ring[zeno_pos] < zeno_window:
+                zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
+                if hit:
                     status = ZENO
                     status_el = nf + nt
             if status != OK:
@@ -2518,28 +2525,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
-            full_rhs_call(
-                D,
-                S,
-                ua,
-                ub,
-                t,
-                t_ref,
-                y,
-                fm,
-                reg,
-                mPT[slot],
-                nx,
-                energy,
-                uw,
-                tau,
-                dy,
-                Cd,
-                cs,
-                svw,
-            )
-            Ks[0, :] = dy
-            nfev += 1
             h_next = hh
         if j < 0 and hit_stop and t < t_end:
             # input breakpoint or controller sample: new input pieces, re-decide
@@ -2560,6 +2545,11 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
+            # g0 (guards at t in the new mode) and u, sv are the decision's (_dm_guards)
+            if hh < h:
+                h_next = h
+        if j >= 0 or (hit_stop and t < t_end):
+            # a new mode or new input pieces from t on: the first stage of the next step afresh
             full_rhs_call(
                 D,
                 S,
@@ -2582,9 +2572,6 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             )
             Ks[0, :] = dy
             nfev += 1
-            # g0 (guards at t in the new mode) and u, sv are the decision's (_dm_guards)
-            if hh < h:
-                h_next = h
         h = h_next
         pending = True
 
