@@ -225,3 +225,25 @@ def test_help_lists_the_builtin_controllers(capsys: pytest.CaptureFixture[str]) 
         assert main([command, "--help"]) == 0
         text = "".join(capsys.readouterr().out.split())  # argparse wraps, also at hyphens
         assert ",".join(builtin_controllers()) in text, command
+
+
+def test_simulate_builds_the_controller_once(tmp_path: Path) -> None:
+    """The kernels are loaded by a short run before the timed one; the controller (and its
+    stability warning) is built once for both."""
+    import warnings
+
+    from drivetrain_ctrl.controllers import UnstableLoopWarning
+
+    hot = tmp_path / "hot.toml"
+    hot.write_text(
+        'name = "hot"\nlaw = "paper"\nk_r = 0.02\nsample_period_s = 0.01\ndelay_samples = 1\n',
+        encoding="utf-8",
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = simulate_reduced(
+            "paper-start", tmp_path / "o", "--controller", str(hot), "--t-end", "0.5"
+        )
+    assert code == 0
+    unstable = [w for w in caught if issubclass(w.category, UnstableLoopWarning)]
+    assert len(unstable) == 1, [str(w.message) for w in unstable]
