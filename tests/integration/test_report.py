@@ -13,15 +13,9 @@ from drivetrain_ctrl.report import MARGIN_KEYS, SECTIONS, build_report
 
 matplotlib.use("Agg")
 
-SCALAR_MARGINS = (
-    "gain_margin_db",
-    "phase_margin_deg",
-    "delay_margin_s",
-    "disk_margin_db",
-    "disk_margin_deg",
-    "ms",
-    "mt",
-    "crossover_rad_s",
+#: the scalar figures among the margin keys (the others are lists)
+SCALAR_MARGINS = tuple(
+    k for k in MARGIN_KEYS if k not in ("closed_loop_poles", "natural_frequencies_hz")
 )
 
 

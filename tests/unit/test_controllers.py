@@ -15,7 +15,6 @@ from drivetrain_ctrl.controllers import (
     ControllerSpec,
     builtin_controllers,
     controller_from_dict,
-    load_controller,
 )
 from drivetrain_ctrl.loading import is_finite_real, load_toml_as, reject_unknown
 from drivetrain_ctrl.params import default_params
@@ -92,21 +91,6 @@ def test_reject_unknown_uses_the_given_error_class() -> None:
     with pytest.raises(MyError, match=r"^sec\.b: unknown key; allowed: \['a'\]$"):
         reject_unknown("sec.", {"a", "b"}, {"a"}, error=MyError)
     reject_unknown("", {"a"}, {"a", "c"}, error=MyError)  # nothing unknown: no error
-
-
-def test_unreadable_controller_files_raise_controller_error(tmp_path: Path) -> None:
-    d = tmp_path / "d.toml"
-    d.mkdir()
-    with pytest.raises(ControllerError, match=r"d\.toml: cannot read the file"):
-        load_controller(str(d))
-    latin = tmp_path / "latin.toml"
-    latin.write_bytes('name = "caf\xe9"\nlaw = "paper"\n'.encode("latin-1"))
-    with pytest.raises(ControllerError, match=r"latin\.toml: not a UTF-8 text file"):
-        load_controller(latin)
-    bad = tmp_path / "bad.toml"
-    bad.write_text("law = \n", encoding="utf-8")
-    with pytest.raises(ControllerError, match=r"bad\.toml: invalid TOML"):
-        load_controller(bad)
 
 
 def test_load_toml_as_keeps_file_not_found(tmp_path: Path) -> None:

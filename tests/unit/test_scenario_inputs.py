@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -62,14 +61,3 @@ def test_unknown_key_message_unchanged() -> None:
     d["initial"]["throtle"] = 0.5
     with pytest.raises(ScenarioError, match=r"^initial\.throtle: unknown key; did you mean"):
         scenario_from_dict(d)
-
-
-def test_unreadable_scenario_files_raise_scenario_error(tmp_path: Path) -> None:
-    d = tmp_path / "d.toml"
-    d.mkdir()
-    with pytest.raises(ScenarioError, match=r"d\.toml: cannot read the file"):
-        load_scenario(str(d))
-    latin = tmp_path / "latin.toml"
-    latin.write_bytes('name = "\xe9"\n'.encode("latin-1"))
-    with pytest.raises(ScenarioError, match=r"latin\.toml: not a UTF-8 text file"):
-        load_scenario(latin)
