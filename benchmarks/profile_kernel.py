@@ -50,7 +50,7 @@ def rdtsc(typingctx):
     return sig, codegen
 """
 
-#: (name, old text, new text, expected count); prof[0..4]: cycles in advance, locate, redecide,
+#: (name, old text, new text, expected count); prof[0..4]: ticks in advance, locate, redecide,
 #: rhs after an event, tight stability bound; prof[5]: total; 6, 7, 8: locates, decisions, iters
 _PATCHES: list[tuple[str, str, str, int]] = [
     ("imports", "from numba.typed import Dict\n", _INTRINSIC, 1),
@@ -179,16 +179,16 @@ for name in ("engage-ramp", "tip-in"):
             best = (pr, res.stats)
     pr, st = best
     tot = pr[5]
-    print(f"{name}: {tot:.3g} cycles in the kernel ({st['steps']} steps, {st['rejected']} "
-          f"rejected, {len(res.events)} events; fewest cycles of {repeats} runs)")
+    print(f"{name}: {tot:.3g} time-stamp-counter ticks in the kernel ({st['steps']} steps, {st['rejected']} "
+          f"rejected, {len(res.events)} events; fewest of {repeats} runs)")
     for i, lab in enumerate(labels):
         print(f"  {lab:36s} {100 * pr[i] / tot:5.1f} %")
     print(f"  {'the rest':36s} {100 * (tot - pr[:5].sum()) / tot:5.1f} %")
     n_loc, n_dec, n_it = pr[6], pr[7], pr[8]
     print(f"  per accepted or rejected step in the loop: "
-          f"{pr[0] / (st['steps'] + st['rejected']):.0f} cycles; per event location "
-          f"{pr[1] / max(n_loc, 1):.0f} cycles ({n_it / max(n_loc, 1):.1f} Illinois iterations); "
-          f"per mode decision {pr[2] / max(n_dec, 1):.0f} cycles")
+          f"{pr[0] / (st['steps'] + st['rejected']):.0f} ticks; per event location "
+          f"{pr[1] / max(n_loc, 1):.0f} ticks ({n_it / max(n_loc, 1):.1f} Illinois iterations); "
+          f"per mode decision {pr[2] / max(n_dec, 1):.0f} ticks")
 """
 
 
