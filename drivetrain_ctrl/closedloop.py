@@ -290,13 +290,46 @@ def law6_controller(
 
     ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
     ``params.actuator`` with the stroke as saturation. When the clutch locks, the pedal is ramped
-    at ``engage_rate`` [m/s] to fully engaged (``None``: no latch). A shortcut for
+    at ``engage_rate`` [m/s] (> 0) to fully engaged (``None``: no latch). A shortcut for
     ``ControllerSpec(name="law6", law="paper").build(...)``
     (:mod:`drivetrain_ctrl.controllers`).
     """
-    from .controllers import ControllerSpec
+    return _from_spec(
+        "law6_controller",
+        params,
+        dict(name="law6", law="paper"),
+        reference=reference,
+        engage_rate=engage_rate,
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
+    )
 
-    spec = ControllerSpec(name="law6", law="paper", engage_rate_m_s=engage_rate or 1.0)
+
+def _from_spec(
+    fn: str,
+    params: Any,
+    fields: dict[str, Any],
+    *,
+    reference: Signal,
+    engage_rate: float | None,
+    start_time: float | None,
+    engine_state: str,
+    driven_state: str,
+) -> Controller:
+    """Build the :class:`~drivetrain_ctrl.controllers.ControllerSpec` of a shortcut; its errors
+    name the shortcut's argument (``engage_rate``, ``dt``) beside the spec's field."""
+    from .controllers import ControllerError, ControllerSpec
+
+    if engage_rate is not None:
+        fields = {**fields, "engage_rate_m_s": engage_rate}
+    try:
+        spec = ControllerSpec(**fields)
+    except ControllerError as exc:
+        msg = str(exc)
+        for arg, field_name in (("dt", "sample_period_s"), ("engage_rate", "engage_rate_m_s")):
+            msg = msg.replace(field_name, f"{arg} ({field_name})")
+        raise ValueError(f"{fn}: {msg}") from None
     c = spec.build(
         params,
         reference=reference,
@@ -304,7 +337,7 @@ def law6_controller(
         engine_state=engine_state,
         driven_state=driven_state,
     )
-    return c if engage_rate else replace(c, latch=None)
+    return c if engage_rate is not None else replace(c, latch=None)
 
 
 def pi_controller(
@@ -322,28 +355,23 @@ def pi_controller(
 ) -> Controller:
     """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``,
     with back-calculation anti-windup; continuous, or sampled every ``dt`` [s] (forward-Euler
-    integrator) with ``delay_samples``. A shortcut for ``ControllerSpec(law="pi", ...).build``.
+    integrator) with ``delay_samples``; the latch as in :func:`law6_controller`. A shortcut for
+    ``ControllerSpec(law="pi", ...).build``.
     """
-    from .controllers import ControllerError, ControllerSpec
-
-    try:
-        spec = ControllerSpec(
+    return _from_spec(
+        "pi_controller",
+        params,
+        dict(
             name="pi",
             law="pi",
             kp=kp,
             ki=ki,
             sample_period_s=dt,
             delay_samples=delay_samples,
-            engage_rate_m_s=engage_rate or 1.0,
-        )
-    except ControllerError as exc:
-        msg = str(exc).replace("sample_period_s", "dt (sample_period_s)")
-        raise ValueError(f"pi_controller: {msg}") from None
-    c = spec.build(
-        params,
+        ),
         reference=reference,
+        engage_rate=engage_rate,
         start_time=start_time,
         engine_state=engine_state,
         driven_state=driven_state,
     )
-    return c if engage_rate else replace(c, latch=None)

@@ -211,3 +211,31 @@ def test_pi_controller_rejects_bad_gains_naming_them() -> None:
         pi_controller(p, reference=constant(100.0), kp=math.nan, ki=1.0)
     with pytest.raises(ValueError, match="dt"):
         pi_controller(p, reference=constant(100.0), kp=1.0, ki=1.0, dt=-0.01)
+
+
+@pytest.mark.parametrize("rate", [0.0, -0.05, math.nan, 20.0])
+def test_shortcuts_reject_a_bad_engage_rate_naming_it(rate: float) -> None:
+    """``engage_rate=0`` is an error, not a silent "no latch" (that is ``None``)."""
+    from drivetrain_ctrl.closedloop import law6_controller, pi_controller
+    from drivetrain_ctrl.params import default_params
+
+    p = default_params()
+    with pytest.raises(ValueError, match=r"law6_controller: .*engage_rate \(engage_rate_m_s\)"):
+        law6_controller(p, reference=constant(100.0), engage_rate=rate)
+    with pytest.raises(ValueError, match=r"pi_controller: .*engage_rate \(engage_rate_m_s\)"):
+        pi_controller(p, reference=constant(100.0), kp=1e-3, ki=1e-3, engage_rate=rate)
+
+
+def test_shortcuts_latch_only_with_an_engage_rate() -> None:
+    from drivetrain_ctrl.closedloop import law6_controller, pi_controller
+    from drivetrain_ctrl.params import default_params
+
+    p = default_params()
+    for make in (
+        lambda **kw: law6_controller(p, reference=constant(100.0), **kw),
+        lambda **kw: pi_controller(p, reference=constant(100.0), kp=1e-3, ki=1e-3, **kw),
+    ):
+        assert make(engage_rate=None).latch is None
+        latched = make(engage_rate=0.02)
+        assert latched.latch is not None
+        assert latched.latch.rate == pytest.approx(0.02)
