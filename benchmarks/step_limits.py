@@ -42,6 +42,7 @@ sys.path.insert(0, str(HERE))
 from bench_simulate import run_tanh, scenario_setup  # noqa: E402
 
 from drivetrain_ctrl import kernels as K  # noqa: E402
+from drivetrain_ctrl.linear import natural_frequency_damping  # noqa: E402
 from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate  # noqa: E402
 
 #: Dormand-Prince 5(4) tableau (the fifth-order solution's weights are the last row)
@@ -140,7 +141,7 @@ def analyse(name: str, repeats: int) -> dict[str, Any]:
     lam_main = max(fast_lams, key=lambda v: fast_lams[v])
     # the fastest eigenvalues of the visited modes where the stability bound is below h_max
     stiff = [v for v in fast_lams if K.STABILITY_FACTOR / abs(v) < opts.h_max]
-    zetas = [-v.real / abs(v) for v in stiff]
+    fz = [natural_frequency_damping(v) for v in stiff]
     limit = dp5_limit_along(lam_main)
     min_steps = int(np.ceil((sc.t_end - 0.0) / opts.h_max))
     per_step = ours_s / steps
@@ -160,15 +161,10 @@ def analyse(name: str, repeats: int) -> dict[str, Any]:
         "stability_factor": K.STABILITY_FACTOR,
         "dominant_fast_eigenvalue": [lam_main.real, lam_main.imag],
         "dominant_fast_eigenvalue_time_s": fast_lams[lam_main],
-        "damping_ratio_of_it": -lam_main.real / abs(lam_main),
+        "damping_ratio_of_it": natural_frequency_damping(lam_main)[1],
         "stiff_modes": len(stiff),
-        "stiff_damping_ratio_range": [min(zetas), max(zetas)] if stiff else None,
-        "stiff_abs_lambda_hz_range": [
-            min(abs(v) for v in stiff) / (2 * np.pi),
-            max(abs(v) for v in stiff) / (2 * np.pi),
-        ]
-        if stiff
-        else None,
+        "stiff_damping_ratio_range": [min(z for _, z in fz), max(z for _, z in fz)] if fz else None,
+        "stiff_abs_lambda_hz_range": [min(f for f, _ in fz), max(f for f, _ in fz)] if fz else None,
         "dp5_stability_limit_along_its_ray": limit,
         "dp5_stability_limit_imaginary_axis": dp5_limit_along(1j),
         "ours_median_s": ours_s,

@@ -38,6 +38,7 @@ from .linear import (
     _slip_mode_poles_of,
     clutch_loop,
     linearise,
+    natural_frequency_damping,
     rebuild_operating_point,
     trim_tf,
 )
@@ -82,8 +83,7 @@ def poles_of(p: Sequence[complex] | NDArray[Any], dt: float | None = None) -> tu
     out = []
     for z in np.asarray(p, dtype=complex):
         s = complex(np.log(z) / dt) if dt else complex(z)
-        a = abs(s)
-        out.append(Pole(s.real, s.imag, a / (2 * math.pi), -s.real / a if a > 0 else 1.0))
+        out.append(Pole(s.real, s.imag, *natural_frequency_damping(s)))
     return tuple(sorted(out, key=lambda q: (q.frequency_hz, q.imag)))
 
 

@@ -1334,20 +1334,25 @@ class ShuffleMode:
     damping: float
 
 
+def natural_frequency_damping(p: complex) -> tuple[float, float]:
+    """Natural frequency ``|p| / 2 pi`` [Hz] and damping ratio ``-Re p / |p|`` [-] of a
+    continuous-time pole ``p`` [1/s] (damping 1 for ``p = 0``; negative when unstable)."""
+    a = abs(p)
+    return a / (2 * math.pi), (float(-p.real / a) if a > 0 else 1.0)
+
+
+def oscillatory_poles(poles: Any) -> list[complex]:
+    """The poles [1/s] with ``Im p > 0`` (beyond round-off: ``1e-9 max(1, |p|)``), one of each
+    conjugate pair, sorted by ``|p|``."""
+    ps = (complex(q) for q in np.asarray(poles, dtype=complex).ravel())
+    return sorted((p for p in ps if p.imag > 1e-9 * max(1.0, abs(p))), key=abs)
+
+
 def _oscillatory(poles: NDArray[np.complex128]) -> tuple[ShuffleMode, ...]:
     out = []
-    for p in sorted(poles, key=lambda z: abs(z)):
-        if p.imag > 1e-9 * max(1.0, abs(p)):
-            a = abs(p)
-            out.append(
-                ShuffleMode(
-                    float(p.real),
-                    float(p.imag),
-                    a / (2 * math.pi),
-                    float(p.imag) / (2 * math.pi),
-                    float(-p.real / a),
-                )
-            )
+    for p in oscillatory_poles(poles):
+        fn, zeta = natural_frequency_damping(p)
+        out.append(ShuffleMode(p.real, p.imag, fn, p.imag / (2 * math.pi), zeta))
     return tuple(out)
 
 
@@ -1661,7 +1666,7 @@ def linearise_visited_modes(
             if sys.nstates
             else []
         )
-        osc = sorted((p for p in poles if p.imag > 1e-9), key=lambda p: abs(p))
+        fz = [natural_frequency_damping(p) for p in oscillatory_poles(poles)]
         segs = [
             f"{ti.name}=segment {r}"
             for ti, r in zip(op.model.tables, op.mode.reg, strict=True)
@@ -1674,8 +1679,8 @@ def linearise_visited_modes(
                 duration_s=dur,
                 op=op,
                 sys=sys,
-                natural_frequencies_hz=tuple(float(abs(p)) / (2 * math.pi) for p in osc),
-                damping=tuple(float(-p.real / abs(p)) for p in osc),
+                natural_frequencies_hz=tuple(f for f, _ in fz),
+                damping=tuple(z for _, z in fz),
             )
         )
     return tuple(out)

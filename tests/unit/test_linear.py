@@ -557,3 +557,17 @@ def test_operating_points_reject_negative_brake_and_pedal_outside_the_map():
             L.locked_trim(dt, vehicle_speed_kmh=25.0, x_c=xc)
     # the ends of the map are inside
     assert L.locked_trim(dt, vehicle_speed_kmh=25.0, x_c=lo).clutch_mode == "stuck"
+
+
+def test_natural_frequency_damping_and_oscillatory_poles() -> None:
+    from drivetrain_ctrl.linear import natural_frequency_damping, oscillatory_poles
+
+    wn, zeta = 2 * math.pi * 50.0, 0.1
+    p = complex(-zeta * wn, wn * math.sqrt(1 - zeta**2))
+    f, z = natural_frequency_damping(p)
+    assert f == pytest.approx(50.0) and z == pytest.approx(0.1)
+    assert natural_frequency_damping(0j) == (0.0, 1.0)
+    assert natural_frequency_damping(complex(3.0, 4.0))[1] == pytest.approx(-0.6)  # unstable
+    # one of each pair, sorted by |p|; real poles and round-off imaginary parts are not modes
+    poles = [p, p.conjugate(), -1.0, complex(-3.0, 1.0), complex(-5000.0, 1e-8)]
+    assert oscillatory_poles(np.array(poles)) == [complex(-3.0, 1.0), p]
