@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import control
 import numpy as np
 import pytest
 
@@ -571,3 +572,28 @@ def test_natural_frequency_damping_and_oscillatory_poles() -> None:
     # one of each pair, sorted by |p|; real poles and round-off imaginary parts are not modes
     poles = [p, p.conjugate(), -1.0, complex(-3.0, 1.0), complex(-5000.0, 1e-8)]
     assert oscillatory_poles(np.array(poles)) == [complex(-3.0, 1.0), p]
+
+
+@pytest.mark.parametrize("sampled", [False, True])
+def test_gang_of_four_is_consistent(sampled):
+    """S + T = 1, PS = P S, CS = C S, L = C P, on the continuous and the sampled PI loop."""
+    dt = 0.01 if sampled else None
+    c = pi_controller(
+        P, reference=sg.constant(170.0), kp=3e-4, ki=1e-3, dt=dt, driven_state="omega_primary"
+    )
+    lp = L.clutch_loop(_slip(), c)
+    w = np.logspace(-1, np.log10(0.9 * np.pi / dt), 30) if sampled else W
+
+    def f(sys):
+        return np.asarray(control.frequency_response(sys, w).complex).ravel()
+
+    Pw, Cw, Lw, Sw = f(lp.plant), f(lp.controller), f(lp.L), f(lp.S)
+    # the sampled loop's transfer function L has the integrator's pole z = 1 moved by round-off
+    # (to 0.99999958: the conversion to a transfer function, minreal): at 0.1 rad/s, where
+    # |z - 1| = 1e-3, that is a relative difference of about 1e-4, falling with w
+    rtol = 1e-3 if sampled else 1e-6
+    assert np.allclose(Lw, Cw * Pw, rtol=rtol)
+    assert np.allclose(Sw, 1 / (1 + Lw), rtol=1e-6)
+    assert np.allclose(Sw + f(lp.T), 1.0, rtol=0, atol=1e-8)
+    assert np.allclose(f(lp.PS), Pw * Sw, rtol=rtol)
+    assert np.allclose(f(lp.CS), Cw * Sw, rtol=rtol)
