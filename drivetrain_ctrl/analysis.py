@@ -1,7 +1,7 @@
 """Loop analysis: stability margins, root loci on a parameter grid, Nyquist data.
 
 Results are frozen dataclasses with ``to_dict()`` (JSON-ready, floats rounded by
-:func:`drivetrain_ctrl.metrics.json_ready`) and ``plot()`` (matplotlib imported inside the method).
+:func:`drivetrain_ctrl.metrics.json_ready`) and ``plot()`` (drawn by :mod:`drivetrain_ctrl.plotting`).
 Undefined figures are None with a reason in ``reasons``.
 
 Margins of a loop ``L`` (negative feedback, ``S = 1/(1+L)``, ``T = L/(1+L)``):
@@ -183,33 +183,24 @@ class LoopMargins:
         return json_ready(d)
 
     def plot(self, L: Any = None, path: str | None = None) -> Any:
-        """Bode magnitude of ``L``, ``S`` and ``T`` (if ``L`` given) and the closed-loop poles."""
-        import matplotlib.pyplot as plt
+        """Bode diagram of ``L``, ``S`` and ``T`` (if ``L`` is given) beside the closed-loop poles;
+        a matplotlib Figure (:func:`drivetrain_ctrl.plotting.plot_loop`), saved to ``path``."""
+        from .plotting import _db_phase, plot_loop
 
-        fig, axes = plt.subplots(1, 2 if L is not None else 1, figsize=(10, 4), squeeze=False)
-        ax = axes[0][-1]
-        ax.plot(
-            [p.real for p in self.closed_loop_poles], [p.imag for p in self.closed_loop_poles], "x"
+        poles = [(p.real, p.imag) for p in self.closed_loop_poles]
+        def fmt(v: float | None) -> str:
+            return "-" if v is None else f"{v:.3g}"
+
+        title = (
+            f"GM {fmt(self.gain_margin_db)} dB, PM {fmt(self.phase_margin_deg)} deg, "
+            f"DM {fmt(self.disk_margin_db)} dB"
         )
-        ax.axvline(0.0, color="k", lw=0.5)
-        ax.set_xlabel("Re [1/s]")
-        ax.set_ylabel("Im [rad/s]")
-        ax.set_title("closed-loop poles")
-        if L is not None:
-            w = _grid(L, None)
-            Lw = _freq(L, w)
-            a0 = axes[0][0]
-            for y, lab in ((Lw, "L"), (1 / (1 + Lw), "S"), (Lw / (1 + Lw), "T")):
-                a0.loglog(w, np.abs(y), label=lab)
-            a0.set_xlabel("omega [rad/s]")
-            a0.legend()
-            a0.set_title(
-                f"GM {self.gain_margin_db} dB, PM {self.phase_margin_deg} deg, "
-                f"DM {self.disk_margin_db} dB"
-            )
-        if path is not None:
-            fig.savefig(path)
-        return fig
+        if L is None:
+            return plot_loop([], {}, title=title, poles=poles, path=path)
+        w = _grid(L, None)
+        Lw = _freq(L, w)
+        bode = {k: _db_phase(h) for k, h in (("L", Lw), ("S", 1 / (1 + Lw)), ("T", Lw / (1 + Lw)))}
+        return plot_loop(w, bode, title=title, poles=poles, path=path)
 
 
 def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins:
@@ -367,44 +358,19 @@ class RootLocus:
 
     def plot(self, path: str | None = None) -> Any:
         """Poles in the complex plane, coloured by the parameter value, one marker per mode of the
-        operating point (legend: the clutch's mode and the elements that differ)."""
-        from matplotlib.figure import Figure
+        operating point (legend: the clutch's mode and the elements that differ); a matplotlib
+        Figure (:func:`drivetrain_ctrl.plotting.plot_root_locus`), saved to ``path`` if given."""
+        from .plotting import plot_root_locus
 
-        fig = Figure(figsize=(6, 5), layout="constrained")
-        ax = fig.subplots()
-        vals = [p.value for p in self.points]
-        labels: list[str] = []
-        for p in self.points:
-            lb = ", ".join(f"{e}={m}" for e, m in p.modes) or "-"
-            if lb not in labels:
-                labels.append(lb)
-        markers = "os^Dv<>p*h"
-        sc = None
-        seen: set[str] = set()
-        for p in self.points:
-            lb = ", ".join(f"{e}={m}" for e, m in p.modes) or "-"
-            sc = ax.scatter(
-                [q.real for q in p.poles],
-                [q.imag for q in p.poles],
-                c=[p.value] * len(p.poles),
-                vmin=min(vals),
-                vmax=max(vals),
-                s=10,
-                marker=markers[labels.index(lb) % len(markers)],
-                label=None if lb in seen else f"mode {labels.index(lb) + 1}",
+        pts = [
+            (
+                p.value,
+                [(q.real, q.imag) for q in p.poles],
+                ", ".join(f"{e}={m}" for e, m in p.modes) or "-",
             )
-            seen.add(lb)
-        ax.axvline(0.0, color="k", lw=0.5)
-        ax.set_xlabel("Re [1/s]")
-        ax.set_ylabel("Im [rad/s]")
-        if len(labels) > 1:
-            ax.legend(loc="best", fontsize=7)
-        ax.set_title(f"root locus over {self.parameter} [{self.unit}]")
-        if sc is not None:
-            fig.colorbar(sc, ax=ax, label=f"{self.parameter} [{self.unit}]")
-        if path is not None:
-            fig.savefig(path)
-        return fig
+            for p in self.points
+        ]
+        return plot_root_locus(pts, parameter=self.parameter, unit=self.unit, path=path)
 
 
 def _scaled_pedal_map(params: Any, x_c: float, factor: float) -> Any:
@@ -518,19 +484,18 @@ class NyquistData:
         return json_ready(dataclasses.asdict(self))
 
     def plot(self, path: str | None = None) -> Any:
-        """The curve (and its mirror image) with the critical point -1."""
-        import matplotlib.pyplot as plt
+        """The curve (and its mirror image) with the critical point -1; a matplotlib Figure
+        (:func:`drivetrain_ctrl.plotting.plot_nyquist`), saved to ``path`` if given."""
+        from .plotting import plot_nyquist
 
-        fig, ax = plt.subplots(figsize=(5, 5))
-        ax.plot(self.real, self.imag, "b")
-        ax.plot(self.real, [-y for y in self.imag], "b--")
-        ax.plot([-1], [0], "r+")
-        ax.set_xlabel("Re L")
-        ax.set_ylabel("Im L")
-        ax.set_title(f"Nyquist: N = {self.encirclements}, P = {self.open_loop_unstable_poles}")
-        if path is not None:
-            fig.savefig(path)
-        return fig
+        return plot_nyquist(
+            self.real,
+            self.imag,
+            encirclements=self.encirclements,
+            open_loop_unstable_poles=self.open_loop_unstable_poles,
+            closed_loop_unstable_poles=self.closed_loop_unstable_poles,
+            path=path,
+        )
 
 
 def nyquist_data(L: Any, *, omega: Sequence[float] | None = None) -> NyquistData:

@@ -1,10 +1,13 @@
-"""Figures of a simulation run (the only module of the package that imports matplotlib).
+"""Figures (the only module of the package that imports matplotlib).
 
-:func:`plot_simulation` draws an overview (speeds, coupling torques, inputs, a strip chart of the
-modes of every friction element and backlash, event markers); :func:`plot_energy` the energy
-balance. Both build a :class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend,
-no global figure registry and nothing to close) and save it as PNG if a path is given. In Jupyter
-the returned figure displays itself; elsewhere use ``fig.savefig(...)``.
+:func:`plot_simulation` draws an overview of a simulation run (speeds, coupling torques, inputs, a
+strip chart of the modes of every friction element and backlash, event markers); :func:`plot_energy`
+the energy balance; :func:`plot_engagement` clutch starts in the layout of the paper's Fig. 14;
+:func:`plot_loop`, :func:`plot_nyquist` and :func:`plot_root_locus` the loop analysis (:mod:`drivetrain_ctrl.analysis`);
+:func:`report_figures` and :func:`write_text_pdf` the controller report. All build a
+:class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend, no global figure registry
+and nothing to close) and save it as PNG if a path is given. In Jupyter the returned figure
+displays itself; elsewhere use ``fig.savefig(...)``.
 
 Engineering units appear here only (rpm, km/h, mm); speeds of the driveline are referred to the
 gearbox primary shaft so that they can be compared on one axis.
@@ -27,7 +30,17 @@ if TYPE_CHECKING:  # pragma: no cover
     from .model import Model
     from .simulate import SimulationResult
 
-__all__ = ["plot_simulation", "plot_energy", "plot_engagement", "DPI"]
+__all__ = [
+    "plot_simulation",
+    "plot_energy",
+    "plot_engagement",
+    "plot_loop",
+    "plot_nyquist",
+    "plot_root_locus",
+    "report_figures",
+    "write_text_pdf",
+    "DPI",
+]
 
 F64 = NDArray[np.float64]
 
@@ -379,3 +392,267 @@ def plot_engagement(
         fig.suptitle(title)
     _save(fig, path)
     return fig
+
+
+# -- loop analysis and reports ------------------------------------------------------------------
+
+
+def _db_phase(h: Any) -> tuple[F64, F64]:
+    """Magnitude [dB] and unwrapped phase [deg] of a complex frequency response."""
+    h = np.asarray(h, dtype=complex).reshape(-1)
+    with np.errstate(divide="ignore"):
+        db = 20.0 * np.log10(np.abs(h))
+    return db, np.degrees(np.unwrap(np.angle(h)))
+
+
+def _pole_axes(ax: Axes, poles: Any, title: str) -> None:
+    p = np.asarray(poles, dtype=float).reshape(-1, 2)
+    ax.plot(p[:, 0], p[:, 1], "x")
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("Re [1/s]")
+    ax.set_ylabel("Im [rad/s]")
+    ax.set_title(title, fontsize=9)
+
+
+def _root_locus_axes(
+    fig: Figure, ax: Axes, points: list[tuple[float, Any, str]], parameter: str, unit: str
+) -> None:
+    """Poles of each ``(value, [(re, im), ...], mode label)`` point, coloured by the value, one
+    marker per distinct mode label (legend when there are several)."""
+    vals = [v for v, _, _ in points]
+    labels: list[str] = []
+    for _, _, lb in points:
+        if lb not in labels:
+            labels.append(lb)
+    markers = "os^Dv<>p*h"
+    sc = None
+    seen: set[str] = set()
+    for v, poles, lb in points:
+        p = np.asarray(poles, dtype=float).reshape(-1, 2)
+        sc = ax.scatter(
+            p[:, 0],
+            p[:, 1],
+            c=[v] * p.shape[0],
+            vmin=min(vals),
+            vmax=max(vals),
+            s=9,
+            marker=markers[labels.index(lb) % len(markers)],
+            label=None if lb in seen else f"mode {labels.index(lb) + 1}",
+        )
+        seen.add(lb)
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_xlabel("Re [1/s]")
+    ax.set_ylabel("Im [rad/s]")
+    if len(labels) > 1:
+        ax.legend(loc="best", fontsize=7)
+    ax.set_title(f"root locus over {parameter} [{unit}]")
+    if sc is not None:
+        fig.colorbar(sc, ax=ax, label=f"{parameter} [{unit}]")
+
+
+def plot_root_locus(
+    points: list[tuple[float, Any, str]],
+    *,
+    parameter: str,
+    unit: str,
+    path: str | Path | None = None,
+) -> Figure:
+    """Root locus on a parameter grid: ``points`` are ``(value, poles, mode label)`` with poles as
+    ``(re, im)`` pairs [1/s]; coloured by the value of ``parameter`` [``unit``], one marker per
+    mode of the operating point. Saved to ``path`` as PNG if given."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 5), layout="constrained")
+    _root_locus_axes(fig, fig.subplots(), points, parameter, unit)
+    _save(fig, path)
+    return fig
+
+
+def plot_loop(
+    omega: Any,
+    bode: dict[str, tuple[Any, Any]],
+    *,
+    title: str,
+    poles: Any = None,
+    path: str | Path | None = None,
+) -> Figure:
+    """Bode diagram of loop transfer functions, e.g. ``L``, ``S``, ``T`` of a clutch loop.
+
+    ``omega`` [rad/s]; ``bode`` maps a label to ``(magnitude [dB], phase [deg])`` on ``omega``
+    (None or NaN for no value); ``poles``: optional ``(re, im)`` pairs [1/s] drawn in a panel on the
+    right (the closed-loop poles). Saved to ``path`` as PNG if given.
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12 if poles is not None else 8, 6), layout="constrained")
+    gs = fig.add_gridspec(
+        2, 2 if poles is not None else 1, width_ratios=[2, 1][: 2 if poles is not None else 1]
+    )
+    am = fig.add_subplot(gs[0, 0])
+    ap = fig.add_subplot(gs[1, 0], sharex=am)
+    for k, (db, ph) in bode.items():
+        am.semilogx(omega, [np.nan if v is None else v for v in db], label=k)
+        ap.semilogx(omega, [np.nan if v is None else v for v in ph], label=k)
+    am.axhline(0.0, color="k", lw=0.5)
+    am.set_ylabel("magnitude [dB]")
+    ap.set_ylabel("phase [deg]")
+    ap.set_xlabel("omega [rad/s]")
+    if bode:
+        am.legend()
+    am.set_title(title)
+    if poles is not None:
+        _pole_axes(fig.add_subplot(gs[:, 1]), poles, "closed-loop poles")
+    _save(fig, path)
+    return fig
+
+
+def plot_nyquist(
+    real: Any,
+    imag: Any,
+    *,
+    encirclements: int,
+    open_loop_unstable_poles: int,
+    closed_loop_unstable_poles: int,
+    path: str | Path | None = None,
+) -> Figure:
+    """Nyquist curve ``L(j omega)`` for ``omega > 0`` (its mirror image dashed), the critical point
+    -1 and the unit circle; the title gives the encirclements N of -1, the open-loop unstable
+    poles P and the closed-loop unstable poles Z = N + P. Saved to ``path`` as PNG if given."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6, 5.5), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(real, imag, "b", label="L(jw), w > 0")
+    ax.plot(real, [-y for y in imag], "b--", lw=0.8, label="w < 0")
+    ax.plot([-1], [0], "r+", ms=12)
+    th = np.linspace(0, 2 * np.pi, 200)
+    ax.plot(np.cos(th), np.sin(th), color="0.7", lw=0.5)
+    lim = min(max(3.0, 1.2 * max((abs(v) for v in real), default=0.0)), 10.0)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_xlabel("Re L")
+    ax.set_ylabel("Im L")
+    ax.set_title(
+        f"Nyquist: N = {encirclements}, P = {open_loop_unstable_poles}, "
+        f"Z = {closed_loop_unstable_poles}"
+    )
+    ax.legend(loc="lower left", fontsize=8)
+    _save(fig, path)
+    return fig
+
+
+def report_figures(data: dict[str, Any]) -> dict[str, Figure]:
+    """The figures of a controller report (:func:`drivetrain_ctrl.report.build_report`), drawn
+    from its ``data`` only: ``{name: Figure}`` for bode, root_locus, nyquist, step, engagement,
+    lock."""
+    from matplotlib.figure import Figure
+
+    cname = data["inputs"]["controller_name"]
+    slip = data["modes"]["slip"][cname]
+    lock = data["modes"]["lock"][cname]
+    figs: dict[str, Figure] = {}
+
+    b = slip["bode"]
+    figs["bode"] = plot_loop(
+        b["L"]["omega"],
+        {k: (b[k]["magnitude_db"], b[k]["phase_deg"]) for k in ("L", "S", "T")},
+        title=f"Bode of L, S, T (slip, controller {cname})",
+    )
+
+    # root loci
+    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    for ax, key in zip(fig.subplots(1, 2), ("gain", "mu_slope"), strict=True):
+        rl = slip["root_locus"][key]
+        pts = [
+            (
+                pt["value"],
+                pt["poles"],
+                ", ".join(f"{e}={m}" for e, m in pt.get("modes", {}).items()),
+            )
+            for pt in rl["points"]
+        ]
+        _root_locus_axes(fig, ax, pts, rl["parameter"], rl["unit"])
+    figs["root_locus"] = fig
+
+    ny = slip["nyquist"]
+    figs["nyquist"] = plot_nyquist(
+        ny["real"],
+        ny["imag"],
+        encirclements=ny["encirclements"],
+        open_loop_unstable_poles=ny["open_loop_unstable_poles"],
+        closed_loop_unstable_poles=ny["closed_loop_unstable_poles"],
+    )
+
+    # step comparison
+    steps = data["linear_vs_nonlinear"]["steps"]
+    fig = Figure(figsize=(11, 4), layout="constrained")
+    axes = fig.subplots(1, len(steps), squeeze=False)
+    for ax, (name, s) in zip(axes[0], sorted(steps.items()), strict=True):
+        ax.plot(s["t_s"], s["linear_rpm"], label="linear (forced_response)")
+        ax.plot(s["t_s"], s["nonlinear_rpm"], "--", label="switching plant")
+        ax.set_xlabel(f"time after the step at {s['t_start_s']:.3g} s [s]")
+        ax.set_ylabel("delta omega_engine [rpm]")
+        ax.set_title(f"{name} reference step {s['step_rpm']:+g} rpm")
+        ax.legend(fontsize=8)
+    figs["step"] = fig
+
+    # engagement
+    es = data["engagement_series"]
+    fig = Figure(figsize=(8, 8), layout="constrained")
+    a0, a1, a2 = fig.subplots(3, 1, sharex=True)
+    a0.plot(es["t_s"], es["omega_engine_rpm"], label="omega_engine")
+    a0.plot(es["t_s"], es["omega_driven_rpm"], label=es["driven_state"])
+    if es["omega_ref_rpm"] is not None:
+        a0.plot(es["t_s"], es["omega_ref_rpm"], "k:", label="omega_r")
+    a0.set_ylabel("speed [rpm]")
+    a0.legend(fontsize=8)
+    a1.plot(es["t_s"], es["x_c_m"])
+    a1.set_ylabel("x_c [m]")
+    a2.plot(es["t_s"], es["v_vehicle_kmh"])
+    a2.set_ylabel("vehicle [km/h]")
+    a2.set_xlabel("t [s]")
+    a0.set_title(f"engagement ({data['inputs']['scenario']}, controller {cname})")
+    for ax in (a0, a1, a2):
+        ax.axvline(data["operating_points"]["slip"]["t_s"], color="r", lw=0.6)
+    figs["engagement"] = fig
+
+    # lock: open-loop poles of the locked driveline
+    fig = Figure(figsize=(6, 4.5), layout="constrained")
+    sm = lock.get("shuffle_modes") or []
+    ttl = ", ".join(f"{m['natural_frequency_hz']:.3g} Hz (zeta {m['damping']:.3g})" for m in sm)
+    _pole_axes(
+        fig.subplots(),
+        lock.get("open_loop_poles") or [],
+        f"locked driveline poles; shuffle: {ttl or 'none'}",
+    )
+    figs["lock"] = fig
+    return figs
+
+
+def write_text_pdf(
+    lines: list[tuple[str, str]], figures: list[Figure], path: str | Path, *, per_page: int = 62
+) -> None:
+    """A PDF of text pages then figures. ``lines``: ``(style, text)`` with style ``h1``, ``h2``,
+    ``p`` (paragraph) or ``t`` (monospace table row), already wrapped; A4 pages of ``per_page``
+    lines; no creation date (the same input gives the same file)."""
+    from matplotlib.backends.backend_pdf import PdfPages
+    from matplotlib.figure import Figure
+
+    with PdfPages(path, metadata={"Creator": "drivetrain_ctrl", "CreationDate": None}) as pdf:
+        for k in range(0, len(lines), per_page):
+            fig = Figure(figsize=(8.27, 11.69))
+            y = 0.97
+            for style, s in lines[k : k + per_page]:
+                kw: dict[str, Any] = (
+                    {"fontsize": 7, "family": "monospace"}
+                    if style == "t"
+                    else {
+                        "fontsize": {"h1": 12, "h2": 10, "p": 7.5}[style],
+                        "weight": "bold" if style in ("h1", "h2") else "normal",
+                    }
+                )
+                fig.text(0.05, y, s, va="top", **kw)
+                y -= 0.015
+            pdf.savefig(fig)
+        for f in figures:
+            pdf.savefig(f)

@@ -17,8 +17,8 @@ prediction of a reference step with the switching plant, and writes into ``out``
 mode the clutch loop is open: every margin is None with that reason; the lock entry gives the
 driveline shuffle modes and the torque margin to breakaway instead).
 
-All figures are drawn from ``data`` only (:func:`make_figures`), so ``Report.plot()`` needs no
-re-computation; matplotlib is imported inside the functions.
+All figures are drawn from ``data`` only (:func:`make_figures`, in
+:mod:`drivetrain_ctrl.plotting`), so ``Report.plot()`` needs no re-computation.
 """
 
 from __future__ import annotations
@@ -663,18 +663,12 @@ def build_report(
     fj.write_text(text, encoding="utf-8")
     files.append(fj)
     figs = make_figures(data)
-    try:
-        fh = outp / "report.html"
-        fh.write_text(_html(data, figs), encoding="utf-8")
-        files.append(fh)
-        fp = outp / "report.pdf"
-        _pdf(data, figs, fp)
-        files.append(fp)
-    finally:
-        import matplotlib.pyplot as plt
-
-        for f in figs.values():
-            plt.close(f)
+    fh = outp / "report.html"
+    fh.write_text(_html(data, figs), encoding="utf-8")
+    files.append(fh)
+    fp = outp / "report.pdf"
+    _pdf(data, figs, fp)
+    files.append(fp)
     return Report(out=outp, data=data, files=tuple(files))
 
 
@@ -684,124 +678,11 @@ def build_report(
 
 
 def make_figures(data: dict[str, Any]) -> dict[str, Any]:
-    """``{name: Figure}``: bode, root_locus, nyquist, step, engagement, lock (from ``data``)."""
-    import matplotlib.pyplot as plt
+    """``{name: Figure}``: bode, root_locus, nyquist, step, engagement, lock (from ``data``;
+    :func:`drivetrain_ctrl.plotting.report_figures`)."""
+    from .plotting import report_figures
 
-    cname = data["inputs"]["controller_name"]
-    slip = data["modes"]["slip"][cname]
-    lock = data["modes"]["lock"][cname]
-    figs: dict[str, Any] = {}
-
-    # Bode of L, S, T
-    fig, (am, ap) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
-    for k in ("L", "S", "T"):
-        b = slip["bode"][k]
-        am.semilogx(b["omega"], [np.nan if v is None else v for v in b["magnitude_db"]], label=k)
-        ap.semilogx(b["omega"], b["phase_deg"], label=k)
-    am.axhline(0.0, color="k", lw=0.5)
-    am.set_ylabel("magnitude [dB]")
-    ap.set_ylabel("phase [deg]")
-    ap.set_xlabel("omega [rad/s]")
-    am.legend()
-    am.set_title(f"Bode of L, S, T (slip, controller {cname})")
-    fig.tight_layout()
-    figs["bode"] = fig
-
-    # root loci
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, key in zip(axes, ("gain", "mu_slope"), strict=True):
-        rl = slip["root_locus"][key]
-        vals = [pt["value"] for pt in rl["points"]]
-        lo, hi = min(vals), max(vals)
-        sc_ = None
-        for pt in rl["points"]:
-            sc_ = ax.scatter(
-                [q[0] for q in pt["poles"]],
-                [q[1] for q in pt["poles"]],
-                c=[pt["value"]] * len(pt["poles"]),
-                vmin=lo,
-                vmax=hi,
-                s=9,
-            )
-        ax.axvline(0.0, color="k", lw=0.5)
-        ax.set_xlabel("Re [1/s]")
-        ax.set_ylabel("Im [rad/s]")
-        ax.set_title(f"root locus over {rl['parameter']} [{rl['unit']}]")
-        if sc_ is not None:
-            fig.colorbar(sc_, ax=ax, label=f"{rl['parameter']} [{rl['unit']}]")
-    fig.tight_layout()
-    figs["root_locus"] = fig
-
-    # Nyquist
-    ny = slip["nyquist"]
-    fig, ax = plt.subplots(figsize=(6, 5.5))
-    ax.plot(ny["real"], ny["imag"], "b", label="L(jw), w > 0")
-    ax.plot(ny["real"], [-y for y in ny["imag"]], "b--", lw=0.8, label="w < 0")
-    ax.plot([-1], [0], "r+", ms=12)
-    th = np.linspace(0, 2 * np.pi, 200)
-    ax.plot(np.cos(th), np.sin(th), color="0.7", lw=0.5)
-    re = [abs(v) for v in ny["real"]]
-    lim = min(max(3.0, 1.2 * max(re)), 10.0)
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_xlabel("Re L")
-    ax.set_ylabel("Im L")
-    ax.set_title(
-        f"Nyquist: N = {ny['encirclements']}, P = {ny['open_loop_unstable_poles']}, "
-        f"Z = {ny['closed_loop_unstable_poles']}"
-    )
-    ax.legend(loc="lower left", fontsize=8)
-    figs["nyquist"] = fig
-
-    # step comparison
-    steps = data["linear_vs_nonlinear"]["steps"]
-    fig, axes = plt.subplots(1, len(steps), figsize=(11, 4), squeeze=False)
-    for ax, (name, s) in zip(axes[0], sorted(steps.items()), strict=True):
-        ax.plot(s["t_s"], s["linear_rpm"], label="linear (forced_response)")
-        ax.plot(s["t_s"], s["nonlinear_rpm"], "--", label="switching plant")
-        ax.set_xlabel(f"time after the step at {s['t_start_s']:.3g} s [s]")
-        ax.set_ylabel("delta omega_engine [rpm]")
-        ax.set_title(f"{name} reference step {s['step_rpm']:+g} rpm")
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    figs["step"] = fig
-
-    # engagement
-    es = data["engagement_series"]
-    fig, axes2 = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
-    a0, a1, a2 = axes2
-    a0.plot(es["t_s"], es["omega_engine_rpm"], label="omega_engine")
-    a0.plot(es["t_s"], es["omega_driven_rpm"], label=es["driven_state"])
-    if es["omega_ref_rpm"] is not None:
-        a0.plot(es["t_s"], es["omega_ref_rpm"], "k:", label="omega_r")
-    a0.set_ylabel("speed [rpm]")
-    a0.legend(fontsize=8)
-    a1.plot(es["t_s"], es["x_c_m"])
-    a1.set_ylabel("x_c [m]")
-    a2.plot(es["t_s"], es["v_vehicle_kmh"])
-    a2.set_ylabel("vehicle [km/h]")
-    a2.set_xlabel("t [s]")
-    a0.set_title(f"engagement ({data['inputs']['scenario']}, controller {cname})")
-    for ax in axes2:
-        for t in (data["operating_points"]["slip"]["t_s"],):
-            ax.axvline(t, color="r", lw=0.6)
-    fig.tight_layout()
-    figs["engagement"] = fig
-
-    # lock: open-loop poles of the locked driveline
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    if lock.get("open_loop_poles"):
-        ax.plot(
-            [q[0] for q in lock["open_loop_poles"]], [q[1] for q in lock["open_loop_poles"]], "x"
-        )
-    ax.axvline(0.0, color="k", lw=0.5)
-    ax.set_xlabel("Re [1/s]")
-    ax.set_ylabel("Im [rad/s]")
-    sm = lock.get("shuffle_modes") or []
-    ttl = ", ".join(f"{m['natural_frequency_hz']:.3g} Hz (zeta {m['damping']:.3g})" for m in sm)
-    ax.set_title(f"locked driveline poles; shuffle: {ttl or 'none'}", fontsize=9)
-    figs["lock"] = fig
-    return figs
+    return dict(report_figures(data))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1049,8 +930,7 @@ def _html(data: dict[str, Any], figs: dict[str, Any]) -> str:
 def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
     import textwrap
 
-    import matplotlib.pyplot as plt
-    from matplotlib.backends.backend_pdf import PdfPages
+    from .plotting import write_text_pdf
 
     lines: list[tuple[str, str]] = []  # (style, text)
     inp = data["inputs"]
@@ -1070,23 +950,4 @@ def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
                 lines += [("t", s) for s in textwrap.wrap(txt, 120, drop_whitespace=False)]
         lines.append(("p", ""))
         order += [f for f in fnames if f not in order]
-    per_page = 62
-    with PdfPages(path, metadata={"Creator": "drivetrain_ctrl", "CreationDate": None}) as pdf:
-        for k in range(0, len(lines), per_page):
-            fig = plt.figure(figsize=(8.27, 11.69))
-            y = 0.97
-            for style, s in lines[k : k + per_page]:
-                kw: dict[str, Any] = (
-                    {"fontsize": 7, "family": "monospace"}
-                    if style == "t"
-                    else {
-                        "fontsize": {"h1": 12, "h2": 10, "p": 7.5}[style],
-                        "weight": "bold" if style in ("h1", "h2") else "normal",
-                    }
-                )
-                fig.text(0.05, y, s, va="top", **kw)
-                y -= 0.015
-            pdf.savefig(fig)
-            plt.close(fig)
-        for f in order + [f for f in figs if f not in order]:
-            pdf.savefig(figs[f])
+    write_text_pdf(lines, [figs[f] for f in order + [f for f in figs if f not in order]], path)

@@ -6,6 +6,7 @@ import json
 import math
 
 import matplotlib
+import numpy as np
 import pytest
 
 from drivetrain_ctrl.controllers import ControllerError
@@ -74,11 +75,18 @@ def test_report_paper_reduced(paper_report):
 
 def test_report_plot_returns_figures(paper_report):
     import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
+    before = plt.get_fignums()
     figs = paper_report.plot()
     assert {"bode", "root_locus", "nyquist", "step", "engagement", "lock"} <= set(figs)
-    for f in figs.values():
-        plt.close(f)
+    assert all(isinstance(f, Figure) for f in figs.values())
+    assert plt.get_fignums() == before  # plain figures: none left open in pyplot
+    # drawn from the data: the Bode axes hold L, S, T over the stored frequency grid
+    bode = paper_report.data["modes"]["slip"]["paper"]["bode"]
+    lines = figs["bode"].axes[0].get_lines()
+    assert [ln.get_label() for ln in lines[:3]] == ["L", "S", "T"]
+    assert np.allclose(lines[0].get_xdata(), bode["L"]["omega"])
 
 
 def test_report_data_is_deterministic(paper_report, tmp_path):

@@ -1,0 +1,81 @@
+"""Figures live in one layer: only ``drivetrain_ctrl.plotting`` imports matplotlib, and its
+figures are plain ``Figure`` objects (no pyplot registry: nothing to close in batch runs)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import numpy as np
+
+import drivetrain_ctrl
+
+PKG = Path(drivetrain_ctrl.__file__).parent
+
+
+def _matplotlib_imports(path: Path) -> list[int]:
+    lines = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or ""]
+        else:
+            continue
+        if any(n == "matplotlib" or n.startswith("matplotlib.") for n in names):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_only_the_plotting_module_imports_matplotlib() -> None:
+    offenders = {
+        p.name: ln
+        for p in sorted(PKG.glob("*.py"))
+        if p.name != "plotting.py" and (ln := _matplotlib_imports(p))
+    }
+    assert offenders == {}, f"matplotlib imported outside plotting.py (file: lines): {offenders}"
+    assert _matplotlib_imports(PKG / "plotting.py")  # the check itself sees imports
+
+
+def test_loop_figures_are_plain_figures_saved_as_png(tmp_path: Path) -> None:
+    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+
+    from drivetrain_ctrl.plotting import plot_loop, plot_nyquist, plot_root_locus
+
+    before = plt.get_fignums()
+    w = np.logspace(-1, 2, 50)
+    L = 10.0 / (1j * w * (1j * w + 1.0))
+    db = 20 * np.log10(np.abs(L))
+    ph = np.degrees(np.unwrap(np.angle(L)))
+    figs = [
+        plot_loop(w, {"L": (db, ph)}, title="t", poles=[(-1.0, 3.0), (-1.0, -3.0)],
+                  path=tmp_path / "bode.png"),
+        plot_loop(w, {}, title="poles only", poles=[(-2.0, 0.0)]),
+        plot_nyquist(L.real, L.imag, encirclements=0, open_loop_unstable_poles=0,
+                     closed_loop_unstable_poles=0, path=tmp_path / "nyq.png"),
+        plot_root_locus([(1.0, [(-1.0, 0.0)], "a"), (2.0, [(-2.0, 1.0)], "b")],
+                        parameter="k", unit="-", path=tmp_path / "rl.png"),
+    ]  # fmt: skip
+    assert all(isinstance(f, Figure) for f in figs)
+    assert plt.get_fignums() == before
+    for name in ("bode.png", "nyq.png", "rl.png"):
+        assert (tmp_path / name).read_bytes().startswith(b"\x89PNG")
+
+
+def test_root_locus_legend_only_with_several_modes() -> None:
+    from drivetrain_ctrl.plotting import plot_root_locus
+
+    one = plot_root_locus([(1.0, [(-1.0, 0.0)], "a")], parameter="k", unit="-")
+    two = plot_root_locus([(1.0, [(-1.0, 0.0)], "a"), (2.0, [(-2.0, 0.0)], "b")],
+                          parameter="k", unit="-")  # fmt: skip
+    assert one.axes[0].get_legend() is None
+    assert [t.get_text() for t in two.axes[0].get_legend().get_texts()] == ["mode 1", "mode 2"]
+
+
+def test_the_import_scan_sees_nested_imports(tmp_path: Path) -> None:
+    p = tmp_path / "x.py"
+    p.write_text("import numpy\nfrom os import path\n")
+    assert _matplotlib_imports(p) == []
+    p.write_text("def f():\n    from matplotlib.figure import Figure\n")
+    assert _matplotlib_imports(p) == [2]
