@@ -188,6 +188,7 @@ class LoopMargins:
         from .plotting import _db_phase, plot_loop
 
         poles = [(p.real, p.imag) for p in self.closed_loop_poles]
+
         def fmt(v: float | None) -> str:
             return "-" if v is None else f"{v:.3g}"
 
