@@ -30,6 +30,16 @@ that decide whether such an integrator would reach the smoothed-baseline goal:
    baseline (``bench_simulate.run_tanh``, timed here).
 
 Writes ``exponential_check.json`` (default ``benchmarks/results/``) and prints a summary.
+
+What a simulator of this kind would still need (a proposal, not measured here): matrix functions
+cached per distinct linear part (a hash of ``A``), with the half-step ones from the doubling for
+a midpoint sample; guards and dissipated powers at the midpoint and the step end (Simpson's rule,
+one order below the 2-point Gauss measured here); event location on a Taylor polynomial of the
+fired guard about the nearest sample (the derivatives ``c^T M^k w`` of the augmented system
+``w' = M w``, ``w = [x; F0; dF]``) and the state at the event from the same series; steps cut to
+stop times with uncached matrix functions; error control on the second-order correction with a
+ladder of halved steps. Closed-loop controllers and smoothed friction would stay on
+Dormand-Prince.
 """
 
 from __future__ import annotations
