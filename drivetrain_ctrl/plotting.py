@@ -1,10 +1,11 @@
 """Figures (the only module of the package that imports matplotlib).
 
-:func:`plot_simulation` draws an overview of a simulation run (speeds, coupling torques, inputs, a
-strip chart of the modes of every friction element and backlash, event markers); :func:`plot_energy`
-the energy balance; :func:`plot_engagement` clutch starts in the layout of the paper's Fig. 14;
-:func:`plot_loop`, :func:`plot_nyquist` and :func:`plot_root_locus` the loop analysis (:mod:`drivetrain_ctrl.analysis`);
-:func:`report_figures` and :func:`write_text_pdf` the controller report. All build a
+:func:`plot_simulation` draws an overview of a simulation run (speeds, coupling torques, inputs,
+a strip chart of the modes of every friction element and backlash, event markers);
+:func:`plot_energy` the energy balance; :func:`plot_engagement` clutch starts in the layout of the
+paper's Fig. 14; :func:`plot_loop`, :func:`plot_nyquist` and :func:`plot_root_locus` the loop
+analysis (:mod:`drivetrain_ctrl.analysis`); :func:`report_figures` and :func:`write_text_pdf` the
+controller report. All build a
 :class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend, no global figure registry
 and nothing to close) and save it as PNG if a path is given. In Jupyter the returned figure
 displays itself; elsewhere use ``fig.savefig(...)``.
@@ -462,6 +463,8 @@ def plot_root_locus(
     mode of the operating point. Saved to ``path`` as PNG if given."""
     from matplotlib.figure import Figure
 
+    if not points:
+        raise ValueError("plot_root_locus: points is empty; give (value, poles, mode label) tuples")
     fig = Figure(figsize=(6, 5), layout="constrained")
     _root_locus_axes(fig, fig.subplots(), points, parameter, unit)
     _save(fig, path)
@@ -484,6 +487,13 @@ def plot_loop(
     """
     from matplotlib.figure import Figure
 
+    nw = len(omega)
+    for k, (db, ph) in bode.items():
+        if len(db) != nw or len(ph) != nw:
+            raise ValueError(
+                f"plot_loop: bode[{k!r}] has {len(db)} magnitudes and {len(ph)} phases for "
+                f"{nw} frequencies in omega (one each per frequency)"
+            )
     fig = Figure(figsize=(12 if poles is not None else 8, 6), layout="constrained")
     gs = fig.add_gridspec(
         2, 2 if poles is not None else 1, width_ratios=[2, 1][: 2 if poles is not None else 1]

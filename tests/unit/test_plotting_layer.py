@@ -7,6 +7,7 @@ import ast
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import drivetrain_ctrl
 
@@ -79,3 +80,12 @@ def test_the_import_scan_sees_nested_imports(tmp_path: Path) -> None:
     assert _matplotlib_imports(p) == []
     p.write_text("def f():\n    from matplotlib.figure import Figure\n")
     assert _matplotlib_imports(p) == [2]
+
+
+def test_plot_functions_name_bad_input() -> None:
+    from drivetrain_ctrl.plotting import plot_loop, plot_root_locus
+
+    with pytest.raises(ValueError, match="points is empty"):
+        plot_root_locus([], parameter="k", unit="-")
+    with pytest.raises(ValueError, match=r"bode\['L'\] has 2 magnitudes and 3 phases for 3"):
+        plot_loop([1.0, 2.0, 3.0], {"L": ([0.0, 1.0], [0.0, 1.0, 2.0])}, title="t")
