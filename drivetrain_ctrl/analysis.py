@@ -71,6 +71,14 @@ class Pole:
     damping: float
 
 
+def db_phase(h: Any) -> tuple[F64, F64]:
+    """Magnitude [dB] (-inf where 0) and unwrapped phase [deg] of a complex frequency response."""
+    h = np.asarray(h, dtype=complex).reshape(-1)
+    with np.errstate(divide="ignore"):
+        db = 20.0 * np.log10(np.abs(h))
+    return db, np.degrees(np.unwrap(np.angle(h)))
+
+
 def poles_of(p: Sequence[complex] | NDArray[Any], dt: float | None = None) -> tuple[Pole, ...]:
     """:class:`Pole` of each value (discrete poles ``z`` mapped by ``s = ln(z)/dt``), sorted by
     frequency then imaginary part. ``dt`` [s]: None (continuous poles) or the finite, positive
@@ -185,7 +193,7 @@ class LoopMargins:
     def plot(self, L: Any = None, path: str | None = None) -> Any:
         """Bode diagram of ``L``, ``S`` and ``T`` (if ``L`` is given) beside the closed-loop poles;
         a matplotlib Figure (:func:`drivetrain_ctrl.plotting.plot_loop`), saved to ``path``."""
-        from .plotting import _db_phase, plot_loop
+        from .plotting import plot_loop
 
         poles = [(p.real, p.imag) for p in self.closed_loop_poles]
 
@@ -200,7 +208,7 @@ class LoopMargins:
             return plot_loop([], {}, title=title, poles=poles, path=path)
         w = _grid(L, None)
         Lw = _freq(L, w)
-        bode = {k: _db_phase(h) for k, h in (("L", Lw), ("S", 1 / (1 + Lw)), ("T", Lw / (1 + Lw)))}
+        bode = {k: db_phase(h) for k, h in (("L", Lw), ("S", 1 / (1 + Lw)), ("T", Lw / (1 + Lw)))}
         return plot_loop(w, bode, title=title, poles=poles, path=path)
 
 

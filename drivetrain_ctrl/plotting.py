@@ -398,14 +398,6 @@ def plot_engagement(
 # -- loop analysis and reports ------------------------------------------------------------------
 
 
-def _db_phase(h: Any) -> tuple[F64, F64]:
-    """Magnitude [dB] and unwrapped phase [deg] of a complex frequency response."""
-    h = np.asarray(h, dtype=complex).reshape(-1)
-    with np.errstate(divide="ignore"):
-        db = 20.0 * np.log10(np.abs(h))
-    return db, np.degrees(np.unwrap(np.angle(h)))
-
-
 def _pole_axes(ax: Axes, poles: Any, title: str) -> None:
     p = np.asarray(poles, dtype=float).reshape(-1, 2)
     ax.plot(p[:, 0], p[:, 1], "x")

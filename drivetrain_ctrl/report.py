@@ -38,7 +38,15 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .analysis import _auto_grid, _dt_of, loop_margins, nyquist_data, poles_of, root_locus
+from .analysis import (
+    _auto_grid,
+    _dt_of,
+    db_phase,
+    loop_margins,
+    nyquist_data,
+    poles_of,
+    root_locus,
+)
 from .controllers import ControllerSpec, UnstableLoopWarning, load_controller
 from .drivetrain import Drivetrain
 from .linear import (
@@ -214,12 +222,7 @@ def _omega_grid(L: Any) -> F64:
 
 
 def _bode(sys: Any, w: F64) -> dict[str, list[float]]:
-    resp = control.frequency_response(sys, w)
-    h = np.asarray(resp.complex, dtype=complex).reshape(-1)
-    mag = np.abs(h)
-    with np.errstate(divide="ignore"):
-        db = 20.0 * np.log10(mag)
-    ph = np.degrees(np.unwrap(np.angle(h)))
+    db, ph = db_phase(control.frequency_response(sys, w).complex)
     return {
         "omega": list(map(float, w)),
         "magnitude_db": list(map(float, db)),

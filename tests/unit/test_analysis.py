@@ -308,3 +308,15 @@ def test_root_locus_with_the_plant_linearised_once_equals_slip_mode_poles(parame
         else:
             cv = dataclasses.replace(c, actuator=Actuator(v, c.actuator.delta))
         assert pt.poles == A.poles_of(L.slip_mode_poles(op, cv))
+
+
+def test_db_phase_of_an_integrator_and_a_zero() -> None:
+    w = np.array([0.1, 1.0, 10.0])
+    db, ph = A.db_phase(1.0 / (1j * w))
+    np.testing.assert_allclose(db, [20.0, 0.0, -20.0], atol=1e-12)
+    np.testing.assert_allclose(ph, -90.0, atol=1e-12)
+    db0, _ = A.db_phase([0.0, 1.0])
+    assert db0[0] == -np.inf and db0[1] == 0.0
+    # unwrapped: a delay's phase keeps falling past -180 deg
+    _, ph_d = A.db_phase(np.exp(-1j * np.linspace(0.0, 3 * np.pi, 50)))
+    assert ph_d[-1] == pytest.approx(-540.0)
