@@ -84,13 +84,13 @@ _PATCHES: list[tuple[str, str, str, int]] = [
         "            slot, nb, h_stab, stab_exact, n_ev = _redecide(",
         "            c0 = rdtsc()\n            prof[7] += 1.0\n"
         "            slot, nb, h_stab, stab_exact, n_ev = _redecide(",
-        2,
+        1,
     ),
     (
         "redecide end",
         "            )  # fmt: skip\n            n_incons += nb",
         "            )  # fmt: skip\n            prof[2] += rdtsc() - c0\n            n_incons += nb",
-        2,
+        1,
     ),
     (
         "rhs after event or stop: start",

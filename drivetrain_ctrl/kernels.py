@@ -2467,7 +2467,8 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
         h_next = fs[7]
         j = ist[6]
         hit_stop = ist[7] != 0
-        if j < 0:
+        event = j >= 0
+        if not event:
             t = t1
             _accept(y, y1, Ks, g0, g1)
         else:
@@ -2502,32 +2503,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             )
             t = t + hi * hh
             y[:] = yhi
-            n_old = n_ev
-            slot, nb, h_stab, stab_exact, n_ev = _redecide(
-                D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
-                W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
-                (ev_t, ev_el, ev_from, ev_to), n_ev,
-            )  # fmt: skip
-            n_incons += nb
-            for e in range(n_old, n_ev):
-                zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
-                if hit:
-                    status = ZENO
-                    status_el = ev_el[e]
-            if j >= n_guards(D):
-                # a controller guard: count it for the Zeno check too
-                zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
-                if hit:
-                    status = ZENO
-                    status_el = nf + nt
-            if status != OK:
-                break
-            if n_ev >= max_events:
-                status = MAX_EVENTS
-                break
-            h_next = hh
-        if j < 0 and hit_stop and t < t_end:
-            # input breakpoint or controller sample: new input pieces, re-decide
+        stop = not event and hit_stop and t < t_end
+        if stop:
+            # input breakpoint or controller sample: new input pieces
             while ib < bps.shape[0] and bps[ib] <= t:
                 ib += 1
             t_ref = t
@@ -2536,19 +2514,38 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 eval_inputs(S, ua, ub, t, t_ref, sv)
                 cl_sample(Cd, cs, y, sv, t)
                 t_sample = t0 + Ts * (np.floor((t - t0) / Ts + 0.5) + 1.0)
+        if event or stop:
+            # re-decide the modes at t; g0 (guards at t in the new mode) and u, sv are the
+            # decision's (_dm_guards)
+            n_old = n_ev
             slot, nb, h_stab, stab_exact, n_ev = _redecide(
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
                 W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
                 (ev_t, ev_el, ev_from, ev_to), n_ev,
             )  # fmt: skip
             n_incons += nb
+            if event:
+                # the Zeno check counts the events located on the trajectory (a controller guard
+                # too), not the decisions at stops
+                for e in range(n_old, n_ev):
+                    zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
+                    if hit:
+                        status = ZENO
+                        status_el = ev_el[e]
+                if j >= n_guards(D):
+                    zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
+                    if hit:
+                        status = ZENO
+                        status_el = nf + nt
+                if status != OK:
+                    break
             if n_ev >= max_events:
                 status = MAX_EVENTS
                 break
-            # g0 (guards at t in the new mode) and u, sv are the decision's (_dm_guards)
-            if hh < h:
+            if event:
+                h_next = hh
+            elif hh < h:
                 h_next = h
-        if j >= 0 or (hit_stop and t < t_end):
             # a new mode or new input pieces from t on: the first stage of the next step afresh
             full_rhs_call(
                 D,
