@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -42,6 +41,7 @@ from .linear import (
     rebuild_operating_point,
     trim_tf,
 )
+from .loading import is_finite_real
 from .metrics import json_ready
 
 __all__ = [
@@ -84,9 +84,7 @@ def poles_of(p: Sequence[complex] | NDArray[Any], dt: float | None = None) -> tu
     frequency then imaginary part. ``dt`` [s]: None (continuous poles) or the finite, positive
     sample period (ValueError otherwise)."""
     if dt is not None:
-        if isinstance(dt, bool) or not isinstance(dt, int | float | np.integer | np.floating):
-            raise ValueError(f"dt = {dt!r}: must be None or a finite sample period > 0 [s]")
-        if not (math.isfinite(dt) and dt > 0):
+        if not (is_finite_real(dt) and dt > 0):
             raise ValueError(f"dt = {dt!r}: must be None or a finite sample period > 0 [s]")
     out = []
     for z in np.asarray(p, dtype=complex):
@@ -393,14 +391,14 @@ def _values(values: Any) -> list[float]:
     """``values`` of :func:`root_locus` as floats: a non-empty 1-D sequence of finite numbers."""
     msg = f"values = {values!r}: a non-empty 1-D sequence of finite numbers is needed"
     if isinstance(values, np.ndarray):
-        if values.dtype.kind not in "biuf":
+        if values.dtype.kind not in "iuf":
             raise ValueError(msg)
         items: list[Any] = list(values.reshape(-1)) if values.ndim == 1 else []
     elif isinstance(values, str | bytes) or not hasattr(values, "__iter__"):
         raise ValueError(msg)
     else:
         items = list(values)
-        if not all(isinstance(v, numbers.Real) for v in items):
+        if not all(is_finite_real(v) for v in items):
             raise ValueError(msg)
     vals = [float(v) for v in items]
     if not vals or not all(math.isfinite(v) for v in vals):

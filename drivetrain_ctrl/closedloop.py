@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 
 from . import kernels as K
 from .chain import PwlTable
+from .loading import is_finite_real
 from .model import Model
 from .signals import Signal, constant
 
@@ -130,21 +131,12 @@ class Controller:
             raise ValueError(
                 f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0"
             )
-        if self.start_time is not None and not (
-            isinstance(self.start_time, (int, float))
-            and not isinstance(self.start_time, bool)
-            and math.isfinite(self.start_time)
-        ):
+        if self.start_time is not None and not is_finite_real(self.start_time):
             raise ValueError(
                 f"{self.name}.start_time = {self.start_time!r} [s]: must be a finite number"
             )
         awt = self.anti_windup_time
-        if awt is not None and not (
-            isinstance(awt, (int, float))
-            and not isinstance(awt, bool)
-            and math.isfinite(awt)
-            and awt > 0
-        ):
+        if awt is not None and not (is_finite_real(awt) and awt > 0):
             raise ValueError(
                 f"{self.name}.anti_windup_time = {awt!r} [s]: must be a finite number > 0 or None"
             )

@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -26,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import kernels as K
+from .loading import is_finite_real
 from .model import Model
 from .signals import Signal, pack_signals
 
@@ -208,7 +208,7 @@ class SimulationResult:
         still running at the end of the run counts if it has lasted that long). None if there is
         none (never locks, or locks only briefly, or is stuck from the start and stays so)."""
         for nm, v in (("min_duration", min_duration), ("after", after)):
-            if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
+            if not is_finite_real(v):
                 raise ValueError(f"lockup_time: {nm} = {v!r} [s]: must be a finite number")
         if min_duration < 0:
             raise ValueError(f"lockup_time: min_duration = {min_duration!r} [s]: must be >= 0")
@@ -386,7 +386,7 @@ def simulate(
     sigs = _signals_for(model, inputs)
     if controller is not None:
         ci = controller_initial
-        if isinstance(ci, bool) or not isinstance(ci, numbers.Real) or not math.isfinite(ci):
+        if not is_finite_real(ci):
             raise ValueError(f"controller_initial = {ci!r}: must be a finite number")
         Cd, cs, refs = controller.compile(model, hold=float(controller_initial))
         y_cl0 = controller.initial_states(model, x0, float(controller_initial))

@@ -120,6 +120,10 @@ def test_controller_validation_names_the_field() -> None:
         _p(1.0, start_time=True)
     with pytest.raises(ValueError, match="anti_windup_time = True"):
         _p(1.0, anti_windup_time=True)
+    with pytest.raises(ValueError, match="anti_windup_time = 0.0"):
+        _p(1.0, anti_windup_time=0.0)
+    # NumPy scalars are numbers (one check for the package: loading.is_finite_real)
+    assert _p(1.0, start_time=np.float32(0.25)).start_time == pytest.approx(0.25)
     with pytest.raises(ValueError, match="controller_initial = nan"):
         simulate(_one_body(), np.zeros(1), {}, t_end=0.1, controller=_p(1.0),
                  controller_initial=float("nan"))  # fmt: skip

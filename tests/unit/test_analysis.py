@@ -281,6 +281,8 @@ def test_poles_of_maps_discrete_poles():
         np.array([[1e-4]]),
         np.array(1e-4),
         None,
+        [True, False],
+        np.array([True, False]),
     ],  # fmt: skip
 )
 def test_root_locus_rejects_bad_values(values):
