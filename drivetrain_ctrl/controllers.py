@@ -228,10 +228,10 @@ class ControllerSpec:
         """
         lw, act = params.law6, params.actuator
         x_r0 = lw.x_r0 if self.x_r0 is None else self.x_r0
-        if not act.x_min <= x_r0 <= act.x_max:
+        msg = act.outside_stroke("x_r0", x_r0)
+        if msg:
             raise ControllerError(
-                f"controller {self.name!r}: x_r0 = {x_r0!r} [m]: must lie within the actuator "
-                f"stroke [{act.x_min!r}, {act.x_max!r}] [m] of parameter set {params.name!r}"
+                f"controller {self.name!r}: {msg} of parameter set {params.name!r}"
             )
         self.check_stability(params)
         latch = LatchRamp(

@@ -786,6 +786,16 @@ class ActuatorParams(_Section):
                 f"{_fmt(self.x_min)} [m]"
             )
 
+    def outside_stroke(self, field: str, x: float) -> str | None:
+        """None if position ``x`` [m] lies within the stroke ``[x_min, x_max]``, else the message
+        naming ``field`` (the caller raises its own error class with it)."""
+        if self.x_min <= x <= self.x_max:
+            return None
+        return (
+            f"{field} = {_fmt(x)} [m]: must lie within the actuator stroke "
+            f"[{_fmt(self.x_min)}, {_fmt(self.x_max)}] [m]"
+        )
+
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Law6Params(_Section):
@@ -909,12 +919,9 @@ class DrivetrainParams:
                     f"{key} = {_fmt(value)}: must be a {cls.__name__}, not {type(value).__name__}"
                 )
         object.__setattr__(self, "provenance", _canonical_provenance(self.provenance))
-        act, x_r0 = self.actuator, self.law6.x_r0
-        if not act.x_min <= x_r0 <= act.x_max:
-            raise ParameterError(
-                f"law6.x_r0 = {_fmt(x_r0)}: must lie within the actuator stroke "
-                f"[{_fmt(act.x_min)}, {_fmt(act.x_max)}] [m]"
-            )
+        msg = self.actuator.outside_stroke("law6.x_r0", self.law6.x_r0)
+        if msg:
+            raise ParameterError(msg)
 
     def provenance_dict(self) -> dict[str, str]:
         """The provenance as a dict ``{dotted field path: source text}``."""

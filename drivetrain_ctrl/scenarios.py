@@ -129,13 +129,9 @@ class Scenario:
     def check_pedal0(self, params: DrivetrainParams) -> None:
         """Raise :class:`ScenarioError` unless ``pedal0`` (the controller's initial output [m])
         lies within the actuator stroke ``[actuator.x_min, actuator.x_max]`` of ``params``."""
-        act = params.actuator
-        if not act.x_min <= self.pedal0 <= act.x_max:
-            raise ScenarioError(
-                f"{self.name}: controller.pedal0 = {self.pedal0!r} [m]: must lie within the "
-                f"actuator stroke [{act.x_min!r}, {act.x_max!r}] [m] of parameter set "
-                f"{params.name!r}"
-            )
+        msg = params.actuator.outside_stroke("controller.pedal0", self.pedal0)
+        if msg:
+            raise ScenarioError(f"{self.name}: {msg} of parameter set {params.name!r}")
 
     def make_controller(self, dt: Drivetrain, controller: Any) -> Any:
         """The closed-loop :class:`~drivetrain_ctrl.closedloop.Controller` of this scenario on
@@ -154,7 +150,6 @@ class Scenario:
                 f"scenario {self.name!r} is open loop (it gives the pedal signal); it takes no "
                 "controller"
             )
-        self.check_pedal0(dt.params)
         spec = load_controller(controller)
         return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
 

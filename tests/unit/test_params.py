@@ -423,3 +423,13 @@ def test_field_info_metadata() -> None:
         assert info["unit"] and info["description"], path
     with pytest.raises(ParameterError, match="did you mean 'engine.J1'"):
         field_info("engine.j1")
+
+
+def test_outside_stroke_names_the_field_and_the_stroke() -> None:
+    act = default_params().actuator
+    assert act.outside_stroke("x", act.x_min) is None
+    assert act.outside_stroke("x", act.x_max) is None
+    msg = act.outside_stroke("controller.pedal0", act.x_max + 0.01)
+    assert msg is not None and msg.startswith("controller.pedal0 = ")
+    assert "actuator stroke" in msg and str(act.x_max) in msg
+    assert act.outside_stroke("x", float("nan")) is not None

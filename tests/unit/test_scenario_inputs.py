@@ -26,8 +26,8 @@ def test_pedal0_outside_the_actuator_stroke_is_rejected() -> None:
     dt = sc.drivetrain(P, kind="reduced")
     with pytest.raises(ScenarioError, match=r"pedal0 = .*actuator stroke"):
         sc.check_pedal0(P)
-    with pytest.raises(ScenarioError, match=r"pedal0 = .*actuator stroke"):
-        sc.make_controller(dt, "paper")
+    # checked where it is used: in the run, not when the controller is built
+    assert sc.make_controller(dt, "paper").name == "paper"
     with pytest.raises(ScenarioError, match=r"pedal0 = .*actuator stroke"):
         sc.run(dt, controller="paper")
     SC.check_pedal0(P)  # the built-in value is fine
