@@ -29,7 +29,6 @@ import html
 import io
 import json
 import math
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,7 +46,7 @@ from .analysis import (
     poles_of,
     root_locus,
 )
-from .controllers import ControllerSpec, UnstableLoopWarning, load_controller
+from .controllers import ControllerSpec, load_controller
 from .drivetrain import Drivetrain
 from .linear import (
     ClutchLoop,
@@ -351,11 +350,11 @@ def _lock_point(
 # ---------------------------------------------------------------------------------------------
 
 
-def _matched_controller(spec: ControllerSpec, params: Any, op: OperatingPoint, ref: Any) -> Any:
-    """The controller with its LTI state set so that its output equals the pedal at ``op``."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UnstableLoopWarning)
-        c = spec.build(params, reference=ref, start_time=None)
+def _matched_controller(ctrl: Any, op: OperatingPoint) -> Any:
+    """``ctrl`` acting from the start of a run at ``op`` (no start time), with its LTI state set so
+    that its output equals the pedal there (with its own reference)."""
+    c = dataclasses.replace(ctrl, start_time=None)
+    ref = c.reference
     n = c.lti.nstates
     if n == 0:
         return c
@@ -375,7 +374,6 @@ class _StepRuns:
     """What the step comparisons share: the controller matched at the slip point and the
     nonlinear run with the nominal reference (the same for every step size)."""
 
-    t0: float
     horizon: float
     controller: Any
     nominal: Any
@@ -394,19 +392,12 @@ def _step_run(sc: Scenario, dtr: Drivetrain, op: OperatingPoint, c: Any, H: floa
     )
 
 
-def _nominal_step_run(
-    sc: Scenario, dtr: Drivetrain, spec: ControllerSpec, params: Any, op: OperatingPoint
-) -> _StepRuns:
-    t0 = float(op.t or 0.0)
-    H = min(STEP_HORIZON_S, sc.t_end - t0)
-    ref = sc.reference
-    if ref is None:  # pragma: no cover - checked by build_report
-        raise ValueError(f"scenario {sc.name!r}: no reference")
+def _nominal_step_run(sc: Scenario, dtr: Drivetrain, ctrl: Any, op: OperatingPoint) -> _StepRuns:
+    H = min(STEP_HORIZON_S, sc.t_end - float(op.t or 0.0))
     # the controller state is matched to the pedal with the nominal reference in every run (the
     # step must reach the controller, not be absorbed into its initial state)
-    c0 = _matched_controller(spec, params, op, ref)
-    nominal = _step_run(sc, dtr, op, dataclasses.replace(c0, reference=ref), H)
-    return _StepRuns(t0, H, c0, nominal)
+    c0 = _matched_controller(ctrl, op)
+    return _StepRuns(H, c0, _step_run(sc, dtr, op, c0, H))
 
 
 def _step_comparison(
@@ -418,12 +409,9 @@ def _step_comparison(
     d_rpm: float,
     shared: _StepRuns,
 ) -> dict[str, Any]:
-    t0, H = shared.t0, shared.horizon
+    t0, H = float(op.t or 0.0), shared.horizon
     d = d_rpm / _RPM
-    ref = sc.reference
-    if ref is None:  # pragma: no cover - checked by build_report
-        raise ValueError(f"scenario {sc.name!r}: no reference")
-    c = dataclasses.replace(shared.controller, reference=ref + step(t0, d))
+    c = dataclasses.replace(shared.controller, reference=shared.controller.reference + step(t0, d))
     runs = {"nominal": shared.nominal, "perturbed": _step_run(sc, dtr, op, c, H)}
     tg = np.linspace(0.0, H, N_STEP_SAMPLES)
 
@@ -621,7 +609,7 @@ def build_report(
         lock_entry["breakaway_margins"] = None
         lock_entry["reasons"]["shuffle_modes"] = lock_how
 
-    shared = _nominal_step_run(sc, dtr, spec, p, op_s)
+    shared = _nominal_step_run(sc, dtr, ctrl, op_s)
     comparison = {
         name: _step_comparison(sc, dtr, p, op_s, cl, d, shared)
         for name, d in STEP_SIZES_RPM.items()

@@ -133,7 +133,7 @@ def test_report_full_model(tmp_path):
 
 def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
     """The nominal run of the step comparison is shared by the step sizes, and the scenario's
-    controller is built once (plus the state-matched copy for the step runs)."""
+    controller is built once (the step runs use a state-matched copy of it)."""
     from drivetrain_ctrl import report as R
     from drivetrain_ctrl.controllers import ControllerSpec
 
@@ -151,4 +151,4 @@ def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
     monkeypatch.setattr(R, "simulate", counting_simulate)
     monkeypatch.setattr(ControllerSpec, "build", counting_build)
     R.build_report(controller="paper", out=tmp_path)
-    assert calls == {"simulate": 1 + len(R.STEP_SIZES_RPM), "build": 2}
+    assert calls == {"simulate": 1 + len(R.STEP_SIZES_RPM), "build": 1}
