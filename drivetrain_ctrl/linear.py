@@ -1163,7 +1163,6 @@ class ClutchLoop:
     ``closed_loop`` the state-space closed loop (reference -> omega_1) whose poles include the
     driveline modes. ``discrete``: sampled controller analysed in discrete time (``dt`` [s]):
     ``L(z) = C(z) z^-d ZOH{P}(z)``, exact at the samples. ``engine``: :class:`EngineSide`.
-    ``source``: the :class:`~drivetrain_ctrl.closedloop.Controller` the loop was built for.
     """
 
     op: OperatingPoint = field(repr=False)
@@ -1184,7 +1183,6 @@ class ClutchLoop:
     closed_loop: control.StateSpace
     discrete: bool
     dt: float | None
-    source: Controller | None = field(default=None, repr=False, compare=False)
 
 
 def _controller_sign(controller: Controller, op: OperatingPoint) -> float:
@@ -1268,7 +1266,6 @@ def clutch_loop(
         closed_loop=cl,
         discrete=disc,
         dt=Ts,
-        source=controller,
     )
 
 
@@ -1513,13 +1510,9 @@ def _reduced_figures(op: OperatingPoint) -> tuple[float, float, float, float, fl
     return J, me, h, float(D.damp[c]), float(D.visc[ip]), b_e
 
 
-def judder_threshold(
-    op: OperatingPoint, controller: Controller | None = None, *, loop: ClutchLoop | None = None
-) -> JudderThreshold:
+def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -> JudderThreshold:
     """Critical friction slope at which a falling mu(slip) destabilises the slip mode (reduced
     model; ``controller`` None = pedal held, else a continuous clutch controller, e.g. law (6)).
-    ``loop``: ``clutch_loop(op, controller)`` if already built (not rebuilt then; ValueError if
-    it is not that loop, e.g. built for another point or controller or with a ``mu_slope``).
 
     Derivation. In slip the clutch torque perturbation is ``c (dw_1 - dw_2) + k13' mu s dx_c``
     with ``c = k13 mu'``. Eliminating the engine (and the controller) the driven side sees the
@@ -1544,32 +1537,29 @@ def judder_threshold(
     ``c_crit`` is the crossing with the smaller ``|c|``.
     """
     _require_slip(op, "judder_threshold")
+    if controller is None:
+        return _judder_threshold(op, engine_side(op), None)
+    if controller.is_discrete:
+        raise ValueError("judder_threshold: a continuous controller is needed")
+    loop = clutch_loop(op, controller)
+    return _judder_threshold(op, loop.engine, loop.L)
+
+
+def _judder_threshold(op: OperatingPoint, es: EngineSide, Lf: Any) -> JudderThreshold:
+    """:func:`judder_threshold` at slip point ``op`` with its engine side ``es`` and the
+    constant-mu loop ``Lf`` of a continuous controller (None: pedal held), e.g. a built
+    :class:`ClutchLoop`'s ``engine`` and ``L``."""
     J, me, h, b, bp, be = _reduced_figures(op)
-    es = engine_side(op)
     b1 = es.b1_eff
     d_star, w_star = shuffle_speed_source_threshold(J=J, m=me, h=h, b=b, e=be)
     c_ss = d_star - bp
-    if controller is None:
-        if loop is not None:
-            raise ValueError("loop: given without a controller (the pedal-held case has no loop)")
+    if Lf is None:
 
         def Ze(s: complex) -> complex:
             return es.J1 * s + b1
 
         Ze0: float | None = b1
     else:
-        if controller.is_discrete:
-            raise ValueError("judder_threshold: a continuous controller is needed")
-        if loop is None:
-            lp = clutch_loop(op, controller)
-        elif loop.op is op and loop.source is controller and loop.engine == es:
-            lp = loop
-        else:
-            raise ValueError(
-                "loop: not clutch_loop(op, controller) (another operating point, controller or "
-                "mu_slope)"
-            )
-        Lf = lp.L
 
         def Ze(s: complex) -> complex:
             return (es.J1 * s + b1) * (1.0 + complex(Lf(s)))

@@ -53,6 +53,7 @@ from .linear import (
     OperatingPoint,
     _controller_sign,
     _driven_state,
+    _judder_threshold,
     clutch_loop,
     judder_threshold,
     linearise_visited_modes,
@@ -279,7 +280,7 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
         if ctrl.is_discrete:
             crit = judder_threshold(op, None).mu_slope_crit
         else:
-            crit = judder_threshold(op, ctrl, loop=cl).mu_slope_crit
+            crit = _judder_threshold(cl.op, cl.engine, cl.L).mu_slope_crit
     except (ValueError, RuntimeError):
         crit = -0.01
     if not (math.isfinite(crit) and crit != 0):

@@ -464,21 +464,18 @@ def test_clutch_loop_pieces_are_the_public_transfer_functions(mu_slope):
         assert np.array_equal(got.den[0][0], ref.den[0][0])
     assert list(loop.x_c_to_tau13.input_labels) == ["x_c"]
     assert list(loop.tau13_to_omega1.output_labels) == ["omega_engine"]
-    assert loop.source is not None
 
 
-def test_judder_threshold_reuses_a_given_loop():
+def test_judder_threshold_from_a_built_loop_is_the_same():
+    """The report computes the threshold from the clutch loop it already built (its engine side
+    and constant-mu L): the same result as the public function, which builds the loop itself."""
     op, ctrl = _slip(), _law6()
     loop = L.clutch_loop(op, ctrl)
-    assert L.judder_threshold(op, ctrl, loop=loop) == L.judder_threshold(op, ctrl)
-    with pytest.raises(ValueError, match="loop: not clutch_loop"):
-        L.judder_threshold(op, _law6(), loop=loop)  # another controller object
-    with pytest.raises(ValueError, match="loop: not clutch_loop"):
-        L.judder_threshold(_slip(omega_driven=90.0), ctrl, loop=loop)
-    with pytest.raises(ValueError, match="loop: not clutch_loop"):
-        L.judder_threshold(op, ctrl, loop=L.clutch_loop(op, ctrl, mu_slope=-1e-3))
-    with pytest.raises(ValueError, match="loop: given without a controller"):
-        L.judder_threshold(op, None, loop=loop)
+    assert L._judder_threshold(loop.op, loop.engine, loop.L) == L.judder_threshold(op, ctrl)
+    assert L._judder_threshold(op, L.engine_side(op), None) == L.judder_threshold(op, None)
+    # a loop with a friction slope is another loop: another threshold
+    lf = L.clutch_loop(op, ctrl, mu_slope=-1e-3)
+    assert L._judder_threshold(op, lf.engine, lf.L) != L.judder_threshold(op, ctrl)
 
 
 def test_linearise_rejects_a_bare_string():
