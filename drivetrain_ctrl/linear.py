@@ -1025,32 +1025,33 @@ def actuator_tf(actuator: Actuator) -> control.TransferFunction:
     return control.tf([w * w], [1.0, 2 * d * w, w * w], inputs="x_r", outputs="x_c")
 
 
-def pedal_to_clutch_torque(
-    op: OperatingPoint, *, engine: EngineSide | None = None
-) -> control.TransferFunction:
+def pedal_to_clutch_torque(op: OperatingPoint) -> control.TransferFunction:
     """x_c -> tau_13 [N m/m] in slip: the static gain ``k13'(x_c) mu s`` (driveline-independent:
-    the kinetic torque depends on the pedal and the slip only). ``engine``: ``engine_side(op)``
-    if already computed."""
-    es = engine_side(op) if engine is None else engine
+    the kinetic torque depends on the pedal and the slip only)."""
+    return _pedal_to_clutch_torque(engine_side(op))
+
+
+def clutch_torque_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
+    """tau_13 -> omega_1 [rad/s / N m] in slip: ``-1 / (J_1 s + b_1')``."""
+    return _clutch_torque_to_engine_speed(engine_side(op))
+
+
+def throttle_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
+    """theta -> omega_1 [rad/s] in slip with constant mu (clutch torque held by the pedal):
+    ``(dC_G/dtheta_f) / ((tau_p s + 1)(J_1 s + b_1'))``."""
+    return _throttle_to_engine_speed(engine_side(op))
+
+
+# the three above from an engine side already computed (clutch_loop)
+def _pedal_to_clutch_torque(es: EngineSide) -> control.TransferFunction:
     return control.tf([es.clutch_gain], [1.0], inputs="x_c", outputs="tau_13")
 
 
-def clutch_torque_to_engine_speed(
-    op: OperatingPoint, *, engine: EngineSide | None = None
-) -> control.TransferFunction:
-    """tau_13 -> omega_1 [rad/s / N m] in slip: ``-1 / (J_1 s + b_1')``. ``engine``:
-    ``engine_side(op)`` if already computed."""
-    es = engine_side(op) if engine is None else engine
+def _clutch_torque_to_engine_speed(es: EngineSide) -> control.TransferFunction:
     return control.tf([-1.0], [es.J1, es.b1_eff], inputs="tau_13", outputs="omega_engine")
 
 
-def throttle_to_engine_speed(
-    op: OperatingPoint, *, engine: EngineSide | None = None
-) -> control.TransferFunction:
-    """theta -> omega_1 [rad/s] in slip with constant mu (clutch torque held by the pedal):
-    ``(dC_G/dtheta_f) / ((tau_p s + 1)(J_1 s + b_1'))``. ``engine``: ``engine_side(op)`` if
-    already computed."""
-    es = engine_side(op) if engine is None else engine
+def _throttle_to_engine_speed(es: EngineSide) -> control.TransferFunction:
     den = np.polymul([es.tau_p, 1.0], [es.J1, es.b1_eff])
     return control.tf([es.torque_per_throttle], den, inputs="throttle", outputs="omega_engine")
 
@@ -1252,9 +1253,9 @@ def clutch_loop(
         controller_name=controller.name,
         engine=es,
         actuator=actuator_tf(controller.actuator) if controller.actuator else control.tf(1, 1),
-        x_c_to_tau13=pedal_to_clutch_torque(op, engine=es),
-        tau13_to_omega1=clutch_torque_to_engine_speed(op, engine=es),
-        theta_to_omega1=throttle_to_engine_speed(op, engine=es),
+        x_c_to_tau13=_pedal_to_clutch_torque(es),
+        tau13_to_omega1=_clutch_torque_to_engine_speed(es),
+        theta_to_omega1=_throttle_to_engine_speed(es),
         x_c_to_accel=pedal_to_vehicle_accel(op, mu_slope=mu_slope),
         plant=P_use,
         controller=C,
