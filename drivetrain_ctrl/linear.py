@@ -1146,11 +1146,9 @@ def law6_loop_closed_form(
     :class:`~drivetrain_ctrl.closedloop.Actuator`."""
     if not isinstance(actuator, Actuator):
         raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
-    for nm, v in (("k_r", k_r), ("J1", J1)):
-        if not _finite(nm, v) > 0:
-            raise ValueError(f"{nm} = {v!r}: must be > 0")
-    g = _finite("k_r", k_r) * abs(_finite("dk13_dxc", dk13_dxc)) * _finite("mu", mu)
-    return control.tf([g], [J1, _finite("b1_eff", b1_eff)]) * actuator_tf(actuator)
+    kr, j1 = _positive("k_r", k_r), _positive("J1", J1)
+    g = kr * abs(_finite("dk13_dxc", dk13_dxc)) * _finite("mu", mu)
+    return control.tf([g], [j1, _finite("b1_eff", b1_eff)]) * actuator_tf(actuator)
 
 
 @dataclass(frozen=True)

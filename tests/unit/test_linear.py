@@ -594,3 +594,15 @@ def test_gang_of_four_is_consistent(sampled):
     assert np.allclose(Sw + f(lp.T), 1.0, rtol=0, atol=1e-8)
     assert np.allclose(f(lp.PS), Pw * Sw, rtol=rtol)
     assert np.allclose(f(lp.CS), Cw * Sw, rtol=rtol)
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "msg"),
+    [("k_r", 0.0, "k_r = 0.0: must be > 0"), ("J1", -0.2, "J1 = -0.2: must be > 0"),
+     ("mu", float("nan"), "mu = nan")],
+)  # fmt: skip
+def test_law6_closed_form_names_a_bad_argument(field, value, msg):
+    kw = dict(k_r=1e-3, dk13_dxc=-3000.0, mu=1.0, J1=0.2, b1_eff=0.1,
+              actuator=L.Actuator(P.actuator.omega_a, P.actuator.delta_a))  # fmt: skip
+    with pytest.raises(ValueError, match=msg):
+        L.law6_loop_closed_form(**{**kw, field: value})
