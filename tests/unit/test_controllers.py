@@ -4,8 +4,11 @@ shared loader (:mod:`drivetrain_ctrl.loading`); no simulation."""
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from pathlib import Path
+from typing import Any
 
+import control
 import numpy as np
 import pytest
 
@@ -13,6 +16,7 @@ from drivetrain_ctrl.controllers import (
     _KEYS,
     ControllerError,
     ControllerSpec,
+    UnstableLoopWarning,
     builtin_controllers,
     controller_from_dict,
 )
@@ -23,7 +27,7 @@ from drivetrain_ctrl.signals import constant
 P = default_params()
 
 
-def _build(spec: ControllerSpec) -> object:
+def _build(spec: ControllerSpec) -> Any:
     return spec.build(P, reference=constant(150.0), start_time=0.5)
 
 
@@ -36,9 +40,12 @@ def test_name_must_be_a_non_empty_string(name: object) -> None:
 def test_pi_with_both_gains_zero_is_rejected() -> None:
     with pytest.raises(ControllerError, match=r"kp = 0\.0, ki = 0\.0"):
         ControllerSpec(name="dead", law="pi", kp=0.0, ki=0.0)
-    # one zero gain is still a controller
-    assert ControllerSpec(name="p-only", law="pi", kp=1e-3, ki=0.0).ki == 0.0
-    assert ControllerSpec(name="i-only", law="pi", kp=0.0, ki=1e-3).kp == 0.0
+    # one zero gain is still a controller: C(s) = kp + ki / s
+    for kp, ki in ((1e-3, 0.0), (0.0, 1e-3)):
+        with warnings.catch_warnings():  # stable or not is not the point here
+            warnings.simplefilter("ignore", UnstableLoopWarning)
+            c = _build(ControllerSpec(name="one-gain", law="pi", kp=kp, ki=ki))
+        assert complex(control.evalfr(c.lti, 2j)) == pytest.approx(kp + ki / 2j)
 
 
 def test_x_r0_outside_the_actuator_stroke_is_rejected_at_build() -> None:
@@ -47,16 +54,17 @@ def test_x_r0_outside_the_actuator_stroke_is_rejected_at_build() -> None:
         spec = ControllerSpec(name="off", law="paper", x_r0=x)  # within the spec's own range
         with pytest.raises(ControllerError, match=r"x_r0 = .*actuator stroke"):
             _build(spec)
-    # the ends of the stroke are accepted
+    # the ends of the stroke are accepted (x_r0 is the law's offset)
     for x in (act.x_min, act.x_max):
-        assert _build(ControllerSpec(name="edge", law="paper", x_r0=x)) is not None
+        assert _build(ControllerSpec(name="edge", law="paper", x_r0=x)).offset == x
 
 
 @pytest.mark.parametrize("v", [np.float32(3e-4), np.float64(3e-4), np.int64(0)])
 def test_numpy_scalars_are_numbers(v: object) -> None:
     spec = ControllerSpec(name="np", law="pi", kp=v, ki=np.float32(1e-3))  # type: ignore[arg-type]
     assert spec.kp == v
-    assert ControllerSpec(name="np", law="paper", x_r0=np.float32(0.07)).x_r0 is not None  # type: ignore[arg-type]
+    x_r0 = ControllerSpec(name="np", law="paper", x_r0=np.float32(0.07)).x_r0  # type: ignore[arg-type]
+    assert x_r0 == pytest.approx(0.07)
 
 
 @pytest.mark.parametrize("v", [True, "0.1", np.float32("nan"), float("inf"), None, 10**400])
@@ -100,5 +108,9 @@ def test_load_toml_as_keeps_file_not_found(tmp_path: Path) -> None:
 
 
 def test_builtin_controllers_build() -> None:
+    act = P.actuator
     for spec in builtin_controllers().values():
-        assert _build(spec) is not None
+        c = _build(spec)
+        assert c.name == spec.name and c.output == "pedal"
+        assert c.saturation == (act.x_min, act.x_max)  # the actuator stroke
+        assert c.is_discrete == (spec.sample_period_s is not None)
