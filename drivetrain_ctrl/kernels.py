@@ -443,7 +443,7 @@ def _coupling_stuck(D, which, c):  # type: ignore[no-untyped-def]
 
 
 @jit
-def project(D: ChainData, x: F64, fm: I64, which: I64) -> None:
+def project(D: ChainData, x: F64, which: I64) -> None:
     """Momentum-preserving projection of the speeds onto ``w_f = 0`` for ``which[f]``
     (:func:`_project_lam` with the mode matrices of that stuck set)."""
     nf = which.shape[0]
@@ -1570,12 +1570,6 @@ def _inf_norm(A):  # type: ignore[no-untyped-def]
         if r > nrm:
             nrm = r
     return nrm
-
-
-@jit
-def _balanced_norm(J):  # type: ignore[no-untyped-def]
-    """``||S^-1 J S||`` (:func:`_balance`, max row sum): an upper bound of the spectral radius."""
-    return _inf_norm(_balance(J))
 
 
 #: squarings in :func:`_spectral_radius_bound`: ``||A^1024||^(1/1024)``, within 3 % of the

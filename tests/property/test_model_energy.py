@@ -91,7 +91,7 @@ def project_onto(
     x = x.copy()
     fma = np.array(fm, dtype=np.int64)
     which = (fma == K.STUCK).astype(np.int64)
-    K.project(m.data, x, fma, which)
+    K.project(m.data, x, which)
     reg = np.zeros(len(m.tables), dtype=np.int64)
     K.update_regions(m.data, x, u, reg)
     return x, Mode(tuple(fm), tuple(int(r) for r in reg))

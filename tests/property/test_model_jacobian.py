@@ -69,7 +69,7 @@ def consistent_mode(
             fm[f] = K.STUCK
             which[f] = 1
     x = x.copy()
-    K.project(m.data, x, fm, which)
+    K.project(m.data, x, which)
     for f in range(nf):
         if fm[f] in (K.SLIP_POS, K.SLIP_NEG):
             w = K.rel_speed(m.data, f, x)

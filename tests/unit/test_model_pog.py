@@ -61,7 +61,7 @@ def mode_with(m: Model, x: np.ndarray, u: np.ndarray, stuck: tuple[bool, ...]):
     """Project x onto the stuck elements; others slip along their relative speed."""
     fm = np.array([K.STUCK if s else K.SLIP_POS for s in stuck], dtype=np.int64)
     x = x.copy()
-    K.project(m.data, x, fm, np.array(stuck, dtype=np.int64))
+    K.project(m.data, x, np.array(stuck, dtype=np.int64))
     for f in range(len(stuck)):
         if not stuck[f] and K.rel_speed(m.data, f, x) < 0:
             fm[f] = K.SLIP_NEG
