@@ -192,8 +192,9 @@ for name in ("engage-ramp", "tip-in"):
 """
 
 
-def patched_copy(dest: Path) -> None:
-    """Copy ``drivetrain_ctrl`` to ``dest`` and instrument its ``kernels.py``."""
+def patched_copy(dest: Path, patches: Sequence[tuple[str, str, str, int]] = _PATCHES) -> None:
+    """Copy ``drivetrain_ctrl`` to ``dest`` and apply ``patches`` (name, old text, new text,
+    expected count; default: this script's instrumentation) to its ``kernels.py``."""
     pkg = dest / "drivetrain_ctrl"
     shutil.copytree(
         ROOT / "drivetrain_ctrl",
@@ -201,16 +202,21 @@ def patched_copy(dest: Path) -> None:
         ignore=shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc"),
     )
     path = pkg / "kernels.py"
-    src = path.read_text()
-    for name, old, new, count in _PATCHES:
+    path.write_text(apply_patches(path.read_text(), patches))
+
+
+def apply_patches(src: str, patches: Sequence[tuple[str, str, str, int]]) -> str:
+    """``src`` (the text of ``kernels.py``) with ``patches`` applied in order; stops with an
+    error naming the patch whose old text does not occur exactly the expected number of times."""
+    for name, old, new, count in patches:
         got = src.count(old)
         if got != count:
             raise SystemExit(
                 f"patch {name!r}: expected {count} occurrence(s) in kernels.py, found {got}; "
-                "update benchmarks/profile_kernel.py to the current kernel"
+                "update the patch to the current kernel"
             )
         src = src.replace(old, new)
-    path.write_text(src)
+    return src
 
 
 def main(argv: Sequence[str] | None = None) -> int:
