@@ -144,25 +144,32 @@ _PATCHES: list[tuple[str, str, str, int]] = [
     ),
 ]
 
-_RUNNER = r"""
+#: runner prelude for a patched copy whose kernel returns one extra output (last): ``simulate``
+#: gets the usual outputs, the extra one is kept in ``captured["extra"]``
+WRAP_KERNEL = """
+from drivetrain_ctrl import kernels as K
+captured = {}
+_orig = K.simulate_kernel
+
+
+def _wrapped(*args):
+    out = _orig(*args)
+    captured["extra"] = out[-1]
+    return out[:-1]
+
+
+K.simulate_kernel = _wrapped
+"""
+
+_RUNNER = (
+    WRAP_KERNEL
+    + r"""
 import sys
 import numpy as np
-from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import simulate as SM
 from drivetrain_ctrl.params import default_params
 from drivetrain_ctrl.scenarios import builtin_scenarios
 
-captured = {}
-orig = K.simulate_kernel
-
-
-def wrapped(*args):
-    out = orig(*args)
-    captured["prof"] = out[-1]
-    return out[:-1]
-
-
-SM.K.simulate_kernel = wrapped
 repeats = int(sys.argv[1])
 p = default_params()
 labels = ["step loop (_advance)", "event location (_locate)", "mode decisions (_redecide)",
@@ -174,7 +181,7 @@ for name in ("engage-ramp", "tip-in"):
     best = None
     for _ in range(repeats):
         res = SM.simulate(dt.model, x0, sc.input_signals(), t_end=sc.t_end)
-        pr = captured["prof"].copy()
+        pr = captured["extra"].copy()
         if best is None or pr[5] < best[0][5]:
             best = (pr, res.stats)
     pr, st = best
@@ -190,6 +197,7 @@ for name in ("engage-ramp", "tip-in"):
           f"{pr[1] / max(n_loc, 1):.0f} ticks ({n_it / max(n_loc, 1):.1f} Illinois iterations); "
           f"per mode decision {pr[2] / max(n_dec, 1):.0f} ticks")
 """
+)
 
 
 def patched_copy(dest: Path, patches: Sequence[tuple[str, str, str, int]] = _PATCHES) -> None:

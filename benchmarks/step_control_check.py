@@ -46,7 +46,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import bench_simulate as BS  # noqa: E402
-from profile_kernel import patched_copy  # noqa: E402
+from profile_kernel import WRAP_KERNEL, patched_copy  # noqa: E402
 
 from drivetrain_ctrl import kernels as K  # noqa: E402
 
@@ -94,35 +94,19 @@ _COUNT_PATCHES: list[tuple[str, str, str, int]] = [
 ]
 
 # the package's warm-up, with the kernel's extra output (the counts) dropped
-_WARMUP = """
-from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.warmup import warmup
-orig = K.simulate_kernel
-K.simulate_kernel = lambda *args: orig(*args)[:-1]
-warmup()
-"""
+_WARMUP = WRAP_KERNEL + "from drivetrain_ctrl.warmup import warmup\nwarmup()\n"
 
-_RUNNER = r"""
+_RUNNER = (
+    WRAP_KERNEL
+    + r"""
 import json, pickle, statistics, sys
 from pathlib import Path
 dest, refdir, repeats, out = Path(sys.argv[1]), Path(sys.argv[2]), int(sys.argv[3]), sys.argv[4]
 sys.path.insert(0, sys.argv[5])
 import bench_simulate as BS
 import drivetrain_ctrl
-from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import simulate as SM
 assert Path(drivetrain_ctrl.__file__).resolve().is_relative_to(dest.resolve()), drivetrain_ctrl.__file__
-captured = {}
-orig = K.simulate_kernel
-
-
-def wrapped(*args):
-    res = orig(*args)
-    captured["counts"] = res[-1]
-    return res[:-1]
-
-
-SM.K.simulate_kernel = wrapped
 result = {"stability_factor": K.STABILITY_FACTOR}
 for name in BS.SCENARIOS:
     s = BS.scenario_setup(name)
@@ -133,7 +117,7 @@ for name in BS.SCENARIOS:
         res = SM.simulate(s.dt.model, s.x0, s.inputs, t_end=s.sc.t_end)
         times.append(res.stats["wall_time_s"])
     names = s.dt.model.state_names
-    counts = {names[i]: int(c) for i, c in enumerate(captured["counts"]) if c > 0}
+    counts = {names[i]: int(c) for i, c in enumerate(captured["extra"]) if c > 0}
     ev = BS.match_events(ref.events, BS.ours_events(res))
     result[name] = {
         "steps": res.stats["steps"],
@@ -148,6 +132,7 @@ for name in BS.SCENARIOS:
     }
 Path(out).write_text(json.dumps(result))
 """
+)
 
 
 def variant_patches(factor: float) -> list[tuple[str, str, str, int]]:
