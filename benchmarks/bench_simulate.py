@@ -193,6 +193,23 @@ def run_tanh(s: Setup) -> B.Run:
     return B.simulate_tanh(s.fast, s.x0, s.inputs, s.sc.t_end, eps=1e-3, rtol=1e-6, atol=1e-9)
 
 
+def reference_run(s: Setup, tol: float = REF_TOL, system: B.FlatGeometry | None = None) -> B.Run:
+    """The reference: scipy's DOP853 stepper, event-driven on the flat model (``system``, default
+    the fast one), rtol = atol = ``tol``, guards also sampled every ``GUARD_SPACING`` on its dense
+    output."""
+    return B.simulate_events(
+        s.fast if system is None else system,
+        s.x0,
+        s.inputs,
+        s.sc.t_end,
+        method="DOP853",
+        rtol=tol,
+        atol=tol,
+        dense=True,
+        guard_spacing=GUARD_SPACING,
+    )
+
+
 def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
     setup = scenario_setup(name)
     params, sc, dtr, x0, inputs, fast = setup
@@ -206,17 +223,7 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
 
     # 1. reference ---------------------------------------------------------------------------
     def run_ref(tol: float, system: B.FlatGeometry = fast) -> B.Run:
-        return B.simulate_events(
-            system,
-            x0,
-            inputs,
-            sc.t_end,
-            method="DOP853",
-            rtol=tol,
-            atol=tol,
-            dense=True,
-            guard_spacing=GUARD_SPACING,
-        )
+        return reference_run(setup, tol, system)
 
     times, ref = timed(lambda: run_ref(REF_TOL), 1)
     out["reference"] = {

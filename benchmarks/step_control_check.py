@@ -54,7 +54,7 @@ OUT = HERE / "results" / "step_control.json"
 ACTIVE_NORM = 0.1  # RMS error norm from which a step counts as held back by the error control
 
 # the counter: ist[8 + i] counts the error-active attempted steps led by component i; returned
-# as the kernel's last output
+# as the kernel's last output (its threshold ACTIVE_SUM: see variant_patches)
 _COUNT_PATCHES: list[tuple[str, str, str, int]] = [
     (
         "counter array",
@@ -77,12 +77,6 @@ _COUNT_PATCHES: list[tuple[str, str, str, int]] = [
         "                    imx = i\n"
         "            ist[8 + imx] += 1\n"
         "        en = np.sqrt(en / nxs)\n",
-        1,
-    ),
-    (
-        "threshold",
-        "STABILITY_FACTOR = 2.5\n",
-        f"ACTIVE_SUM = {ACTIVE_NORM**2!r}\nSTABILITY_FACTOR = 2.5\n",
         1,
     ),
     (
@@ -136,34 +130,16 @@ Path(out).write_text(json.dumps(result))
 
 
 def variant_patches(factor: float) -> list[tuple[str, str, str, int]]:
-    """The counter patches, and ``STABILITY_FACTOR`` set to ``factor``."""
-    ps = list(_COUNT_PATCHES)
-    if factor != K.STABILITY_FACTOR:
-        name, old, new, n = ps[2]
-        ps[2] = (
-            name,
-            old,
-            new.replace("STABILITY_FACTOR = 2.5", f"STABILITY_FACTOR = {factor!r}"),
-            n,
-        )
-    return ps
+    """The counter patches, its threshold ``ACTIVE_SUM`` and ``STABILITY_FACTOR`` = ``factor``."""
+    line = f"STABILITY_FACTOR = {K.STABILITY_FACTOR!r}\n"
+    consts = f"ACTIVE_SUM = {ACTIVE_NORM**2!r}\nSTABILITY_FACTOR = {factor!r}\n"
+    return [*_COUNT_PATCHES, ("constants", line, consts, 1)]
 
 
 def references(refdir: Path) -> None:
-    """The DOP853 reference of each scenario (as in ``bench_simulate.py``), pickled."""
+    """The reference of each scenario (``bench_simulate.reference_run``), pickled."""
     for name in BS.SCENARIOS:
-        s = BS.scenario_setup(name)
-        ref = BS.B.simulate_events(
-            s.fast,
-            s.x0,
-            s.inputs,
-            s.sc.t_end,
-            method="DOP853",
-            rtol=BS.REF_TOL,
-            atol=BS.REF_TOL,
-            dense=True,
-            guard_spacing=BS.GUARD_SPACING,
-        )
+        ref = BS.reference_run(BS.scenario_setup(name))
         (refdir / f"{name}.pkl").write_bytes(pickle.dumps(ref))
         print(f"reference {name}: {len(ref.events)} events", flush=True)
 
@@ -189,7 +165,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if a.repeats < 1:
         ap.error(f"--repeats = {a.repeats}: must be >= 1")
-    factors = [K.STABILITY_FACTOR] + ([] if a.quick else parse_factors(a.factors))
+    factors = [K.STABILITY_FACTOR]
+    if not a.quick:
+        factors += [f for f in dict.fromkeys(parse_factors(a.factors)) if f != factors[0]]
     repeats = 3 if a.quick else a.repeats
     with tempfile.TemporaryDirectory(prefix="dtc-stepctl-") as tmp:
         root = Path(tmp)
@@ -201,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             dest.mkdir()
             patched_copy(dest, variant_patches(f))
             dests.append(dest)
-        print(f"compiling {len(dests)} patched copies in {root} (a few minutes) ...", flush=True)
+        print(f"compiling {len(dests)} patched copy(ies) in {root} (a few minutes) ...", flush=True)
         procs = [
             subprocess.Popen(
                 [sys.executable, "-c", _WARMUP],
