@@ -91,7 +91,7 @@ def check_segment(name: str, rtols: Sequence[float]) -> dict[str, Any] | None:
         f"{name}: t = {res.t[i]:.4f} .. {res.t[j]:.4f} s in one mode, ours {j - i} steps "
         f"(rtol {opts.rtol:g}, atol {opts.atol:g}, h_max {opts.h_max:g} s)"
     )
-    rows = []
+    rows: list[dict[str, Any]] = []
     for rtol in rtols:
         atol = rtol * opts.atol / opts.rtol
         for method in METHODS:
