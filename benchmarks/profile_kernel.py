@@ -88,8 +88,8 @@ _PATCHES: list[tuple[str, str, str, int]] = [
     ),
     (
         "redecide end",
-        "            )  # fmt: skip\n            n_incons += nb",
-        "            )  # fmt: skip\n            prof[2] += rdtsc() - c0\n            n_incons += nb",
+        "            )  # fmt: skip\n            if nb == DM_TOO_MANY:",
+        "            )  # fmt: skip\n            prof[2] += rdtsc() - c0\n            if nb == DM_TOO_MANY:",
         1,
     ),
     (

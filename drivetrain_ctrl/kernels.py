@@ -569,18 +569,23 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
     stuck / slip+ / slip- combinations the consistent one with the most elements stuck is taken
     (stuck torques within static capacity, slip directions agreeing with the accelerations).
     Returns the number of candidates (or ``-1`` if no combination was consistent and the least
-    inconsistent one was taken). The simulator makes the same decision through the same functions
+    inconsistent one was taken; ``DM_TOO_MANY`` if more than ``DM_MAX_CANDIDATES`` elements are
+    candidates, ``fm`` then unchanged). The simulator makes the same decision through the same functions
     (:func:`_dm_classify_core`, :func:`_project_cached`, :func:`_dm_combos`) with caches kept over
     the run.
     """
     mmask, mP, mPT, mL, mst = _mm_alloc(D)
-    cand, caps, idx, trial, tau, lamw = _dm_work(D)
+    cand, caps, idx, trial, tau, lamw, prog = _dm_work(D)
+    fm0 = fm.copy()
     nc = _dm_classify_core(D, x, u, fm, reg, tol, cand, caps)
     if nc == 0:
         return 0
+    if nc > DM_MAX_CANDIDATES:
+        fm[:] = fm0
+        return DM_TOO_MANY
     _project_cached(D, x, cand, trial, lamw, mmask, mP, mPT, mL, mst)
     return _dm_combos_all(
-        D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mPT, mL, mst
+        D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, mP, mPT, mL, mst
     )
 
 
@@ -788,7 +793,7 @@ def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) 
 #
 
 # status codes
-OK, ZENO, MAX_EVENTS, MAX_STEPS, STEP_TOO_SMALL = 0, 1, 2, 3, 4
+OK, ZENO, MAX_EVENTS, MAX_STEPS, STEP_TOO_SMALL, TOO_MANY_CANDIDATES = 0, 1, 2, 3, 4, 5
 
 # Dormand-Prince 5(4) tableau
 C2, C3, C4, C5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
@@ -1413,6 +1418,100 @@ def dense_eval(rc, th, out):  # type: ignore[no-untyped-def]
 
 
 @jit_inline
+def _lin(v, i, r, coupled):  # type: ignore[no-untyped-def]
+    """Relative speed ``v[i] - r v[i+1]`` (coupled) or ``v[i]`` of a state-like vector ``v``."""
+    return v[i] - r * v[i + 1] if coupled else v[i]
+
+
+@jit_inline
+def _lin_row(A, k, i, r, coupled):  # type: ignore[no-untyped-def]
+    """:func:`_lin` of row ``k`` of ``A`` (no view: the caller may run without NRT)."""
+    return A[k, i] - r * A[k, i + 1] if coupled else A[k, i]
+
+
+#: sample points of the continuous extension in :func:`_slip_dip` (then golden-section refinement)
+DIP_SAMPLES = 32
+
+
+@jit_inline
+def _slip_dip(D, fm, y, y1, Ks, hh):  # type: ignore[no-untyped-def]
+    """Fraction ``th`` in (0, 1) of an accepted step at which a slipping element's relative speed,
+    on the slip side at both ends of the step, reaches a minimum on the other side (a stick or
+    reversal episode shorter than the step, which the guards at the step ends cannot see); the
+    earliest such minimum over the elements, or 0.0 if there is none.
+
+    Per element the continuous extension of ``s w`` (``s`` the slip direction) is a quartic in
+    ``th`` (:func:`dense_coeffs`); a bound from its coefficients rules a dip out in almost every
+    step, else it is sampled at ``DIP_SAMPLES`` points and the smallest sample refined by golden
+    section."""
+    th_best = 0.0
+    for f in range(fm.shape[0]):
+        m = fm[f]
+        if (m != SLIP_POS and m != SLIP_NEG) or D.f_eps[f] > 0.0:
+            continue
+        i = D.f_idx[f]
+        coupled = D.f_kind[f] == 0
+        r = D.ratio[i] if coupled else 0.0
+        sg = 1.0 if m == SLIP_POS else -1.0
+        g0 = sg * _lin(y, i, r, coupled)
+        g1 = sg * _lin(y1, i, r, coupled)
+        if not (g0 > 0.0 and g1 > 0.0):
+            continue
+        k0 = sg * _lin_row(Ks, 0, i, r, coupled)
+        k6 = sg * _lin_row(Ks, 6, i, r, coupled)
+        dk = sg * (
+            D1 * _lin_row(Ks, 0, i, r, coupled)
+            + D3 * _lin_row(Ks, 2, i, r, coupled)
+            + D4 * _lin_row(Ks, 3, i, r, coupled)
+            + D5 * _lin_row(Ks, 4, i, r, coupled)
+            + D6 * _lin_row(Ks, 5, i, r, coupled)
+            + D7 * _lin_row(Ks, 6, i, r, coupled)
+        )
+        c1 = g1 - g0
+        c2 = hh * k0 - c1
+        c3 = c1 - hh * k6 - c2
+        c4 = hh * dk
+        # g(th) = g0 + th c1 + th(1-th) c2 + th^2(1-th) c3 + th^2(1-th)^2 c4 >= min(g0, g1)
+        # - |c2|/4 - 4|c3|/27 - |c4|/16 on [0, 1]
+        if min(g0, g1) > 0.25 * abs(c2) + (4.0 / 27.0) * abs(c3) + 0.0625 * abs(c4):
+            continue
+        k_min = 0
+        g_min = np.inf
+        for k in range(1, DIP_SAMPLES):
+            th = k / DIP_SAMPLES
+            t1 = 1.0 - th
+            g = g0 + th * (c1 + t1 * (c2 + th * (c3 + t1 * c4)))
+            if g < g_min:
+                g_min = g
+                k_min = k
+        a = (k_min - 1) / DIP_SAMPLES
+        b = (k_min + 1) / DIP_SAMPLES
+        for _it in range(30):
+            # golden section on [a, b]
+            p = b - 0.6180339887498949 * (b - a)
+            q = a + 0.6180339887498949 * (b - a)
+            gp = g0 + p * (c1 + (1.0 - p) * (c2 + p * (c3 + (1.0 - p) * c4)))
+            gq = g0 + q * (c1 + (1.0 - q) * (c2 + q * (c3 + (1.0 - q) * c4)))
+            if gp < gq:
+                b = q
+            else:
+                a = p
+        th = 0.5 * (a + b)
+        t1 = 1.0 - th
+        g = g0 + th * (c1 + t1 * (c2 + th * (c3 + t1 * c4)))
+        if g_min < g:
+            th = k_min / DIP_SAMPLES
+            g = g_min
+        if g < 0.0 and (th_best == 0.0 or th < th_best):
+            th_best = th
+    return th_best
+
+
+#: retakes of one step at a dip (:func:`_slip_dip`) before the step is accepted as it is
+MAX_DIP_RETAKES = 4
+
+
+@jit_inline
 def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):  # type: ignore[no-untyped-def]
     """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT).
 
@@ -1653,6 +1752,11 @@ def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
 
 #: return code of :func:`_dm_combos`: the mode matrices of ``trial`` are not in the cache
 DM_MISS = -2
+#: :func:`decide_modes` / :func:`_decide_fast`: more candidates than ``DM_MAX_CANDIDATES``
+DM_TOO_MANY = -3
+#: most elements decided together at one event: the decision tries up to 3^n combinations
+#: (3^12 = 531441, some 0.1-1 s); beyond it a run stops with ``TOO_MANY_CANDIDATES``, not a hang
+DM_MAX_CANDIDATES = 12
 
 
 @jit_nonrt
@@ -1713,7 +1817,8 @@ def _mm_alloc(D):  # type: ignore[no-untyped-def]
 
 @jit
 def _dm_work(D):  # type: ignore[no-untyped-def]
-    """Work arrays ``(cand, caps, idx, trial, tau, lamw)`` of a mode decision."""
+    """Work arrays ``(cand, caps, idx, trial, tau, lamw, prog)`` of a mode decision (``prog``:
+    where :func:`_dm_combos` resumes, see there)."""
     nf = D.f_kind.shape[0]
     return (
         np.zeros(nf, dtype=np.int64),
@@ -1722,6 +1827,7 @@ def _dm_work(D):  # type: ignore[no-untyped-def]
         np.zeros(nf, dtype=np.int64),
         np.zeros(D.M.shape[0]),
         np.zeros(nf),
+        np.zeros(4),
     )
 
 
@@ -1806,10 +1912,15 @@ def _consistency_nr(D, fm, cand, caps, P, Lam, tau):  # type: ignore[no-untyped-
 
 
 @jit_nonrt
-def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst):  # type: ignore[no-untyped-def]
+def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, mP, mL, mst):  # type: ignore[no-untyped-def]
     """Second part of a mode decision (after the projection): the candidates' modes. Returns as
     :func:`decide_modes` does, or ``DM_MISS`` before changing ``fm`` if a trial's mode matrices are not
-    cached (``trial`` holds that mode; call again once they are)."""
+    cached (``trial`` holds that mode; call again once they are: the search resumes at that trial).
+
+    ``prog = [n_stuck, code, best_code, best_violation]``: where the search stands; set
+    ``prog[0] = -1`` to start a new decision. (Resuming, not restarting, keeps a decision linear
+    in the number of combinations, and finite when the combinations' stuck sets outnumber the
+    cache slots: a restart then needed a slot the cache had just evicted, forever.)"""
     nf = fm.shape[0]
     update_regions(D, x, u, reg)
     j = 0
@@ -1820,12 +1931,19 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
     ncomb = 1
     for _q in range(nc):
         ncomb *= 3
-    best_code = 0
-    best_viol = np.inf
+    if prog[0] < 0.0:
+        prog[0] = nc
+        prog[1] = 0.0
+        prog[2] = 0.0
+        prog[3] = np.inf
+    n0 = int(prog[0])
+    code0 = int(prog[1])
+    best_code = int(prog[2])
+    best_viol = prog[3]
     for f in range(nf):
         trial[f] = fm[f]
-    for n_stuck in range(nc, -1, -1):
-        for code in range(ncomb):
+    for n_stuck in range(n0, -1, -1):
+        for code in range(code0 if n_stuck == n0 else 0, ncomb):
             c = code
             ns = 0
             for jj in range(nc):
@@ -1838,6 +1956,10 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
                 continue
             s = _mm_find(trial, mmask, mst)
             if s < 0:
+                prog[0] = n_stuck
+                prog[1] = code
+                prog[2] = best_code
+                prog[3] = best_viol
                 return DM_MISS
             forces_into(D, x, u, trial, reg, tau, tau, -1)
             v = _consistency_nr(D, trial, cand, caps, mP[s], mL[s], tau)
@@ -1857,12 +1979,15 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL,
 
 
 @jit_inline
-def _dm_combos_all(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mPT, mL, mst):  # type: ignore[no-untyped-def]
-    """:func:`_dm_combos`, filling the mode-matrix cache on a miss."""
-    r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst)
+def _dm_combos_all(
+    D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, mP, mPT, mL, mst
+):  # type: ignore[no-untyped-def]
+    """:func:`_dm_combos` from the start, filling the mode-matrix cache on a miss and resuming."""
+    prog[0] = -1.0
+    r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, mP, mL, mst)
     while r == DM_MISS:
         _mm_insert(D, trial, mmask, mP, mPT, mL, mst)
-        r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, mmask, mP, mL, mst)
+        r = _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, mP, mL, mst)
     return r
 
 
@@ -1891,20 +2016,23 @@ def _decide_fast(  # type: ignore[no-untyped-def]
 ):
     """Decide plant modes (as :func:`decide_modes`) and controller states together until no guard
     fires, with the array cache of mode matrices and work arrays ``W = (cand, caps, idx, trial,
-    tau, lamw)``. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in cache slot
-    ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was taken)
-    or guards still fired after 20 rounds."""
-    cand, caps, idx, trial, tauw, lamw = W
+    tau, lamw, prog)``. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in
+    cache slot ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was
+    taken) or guards still fired after 20 rounds, ``DM_TOO_MANY`` if more than
+    ``DM_MAX_CANDIDATES`` elements were candidates (then no decision was made: stop the run)."""
+    cand, caps, idx, trial, tauw, lamw, prog = W
     slot = -1
     ok = False
     n_bad = 0
     for _rep in range(20):
         nc = _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol_w, cand, caps)
         r = 0
+        if nc > DM_MAX_CANDIDATES:
+            return -1, DM_TOO_MANY
         if nc > 0:
             _project_cached(D, y, cand, trial, lamw, mmask, mP, mPT, mL, mst)
             r = _dm_combos_all(
-                D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, mmask, mP, mPT, mL, mst
+                D, y, u, fm, reg, nc, cand, caps, idx, trial, tauw, prog, mmask, mP, mPT, mL, mst
             )
         # only the last round counts: a first round may be inconsistent before the projection
         n_bad = 1 if r < 0 else 0
@@ -2078,6 +2206,7 @@ def _advance(  # type: ignore[no-untyped-def]
     n_rec = ist[4]
     stab_exact = ist[5] != 0
     nxs = nx + n_cl_states(Cd)
+    n_dip = 0
     code = ADV_DONE
     while True:
         if not (t < t_end):
@@ -2144,6 +2273,16 @@ def _advance(  # type: ignore[no-untyped-def]
                 code = ADV_TOO_SMALL
                 break
             continue
+        if n_dip < MAX_DIP_RETAKES:
+            th = _slip_dip(D, fm, y, y1, Ks, hh)
+            if th > 0.0 and th * hh >= 1e-14 * max(1.0, abs(t)):
+                # a slip speed dips through zero and back inside the step: retake the step up to
+                # the dip's minimum, where its guard then fires (counted as a rejected step)
+                n_dip += 1
+                n_rej += 1
+                h = th * hh
+                continue
+        n_dip = 0
         n_steps += 1
         # PI step-size control (Gustafsson): 0.9 en^-0.14 err_old^0.08, with log(err_old) kept
         # (one log and one exp a step instead of two pow calls)
@@ -2208,6 +2347,8 @@ def _redecide(  # type: ignore[no-untyped-def]
     slot, nb = _decide_fast(
         D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
     )
+    if nb == DM_TOO_MANY:
+        return slot, nb, 0.0, True, n_ev
     h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
     n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
     return slot, nb, h_stab, stab_exact, n_ev
@@ -2340,6 +2481,13 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     slot, nb = _decide_fast(
         D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
     )
+    if nb == DM_TOO_MANY:
+        # no decision: stop before the first step (the outputs hold the initial sample)
+        status = TOO_MANY_CANDIDATES
+        t_end = t
+        slot = 0
+        nb = 0
+        _mm_insert(D, fm, mmask, mP, mPT, mL, mst)
     n_incons += nb
     hcache = Dict.empty(key_type=types.int64, value_type=types.float64)
     jcache = Dict.empty(key_type=types.int64, value_type=_F2D)
@@ -2517,6 +2665,9 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                 W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
                 (ev_t, ev_el, ev_from, ev_to), n_ev,
             )  # fmt: skip
+            if nb == DM_TOO_MANY:
+                status = TOO_MANY_CANDIDATES
+                break
             n_incons += nb
             if event:
                 # the Zeno check counts the events located on the trajectory (a controller guard

@@ -392,7 +392,13 @@ class Model:
         x = np.array(x, dtype=float)
         fm = np.full(len(self.frictions), K.OPEN, dtype=np.int64)
         reg = np.zeros(len(self.tables), dtype=np.int64)
-        K.decide_modes(self.data, x, np.asarray(u, dtype=float), fm, reg, tol)
+        r = K.decide_modes(self.data, x, np.asarray(u, dtype=float), fm, reg, tol)
+        if r == K.DM_TOO_MANY:
+            raise ValueError(
+                f"more than {K.DM_MAX_CANDIDATES} friction elements are at zero relative speed "
+                f"(within tol = {tol:g}) at once: deciding them together would try 3^n "
+                "stuck/slip combinations"
+            )
         return Mode(tuple(int(v) for v in fm), tuple(int(v) for v in reg)), x
 
     def mode_from_state(self, x: F64, u: F64, friction_modes: Mapping[str, str]) -> Mode:

@@ -316,7 +316,7 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         clutch_locked0=locked,
         v_vehicle0=float(kmh_to_m_s(_num("initial.", ini, "vehicle_speed_kmh"))),
         throttle0=_num("initial.", ini, "throttle"),
-        twist_torque0=float(ini.get("twist_torque", 0.0)),
+        twist_torque0=_num("initial.", ini, "twist_torque") if "twist_torque" in ini else 0.0,
         inputs=tuple(sigs),
         reference=reference,
         control_start=start,

@@ -119,6 +119,7 @@ _STATUS = {
     K.MAX_EVENTS: "max_events",
     K.MAX_STEPS: "max_steps",
     K.STEP_TOO_SMALL: "step_too_small",
+    K.TOO_MANY_CANDIDATES: "too_many_candidates",
 }
 
 
@@ -129,7 +130,9 @@ class SimulationResult:
     ``t`` (N,) [s]; ``x`` (N, nx) states (units: ``model.state_units``); ``u`` (N, nu) inputs;
     ``fm`` (N, nf) friction mode codes and ``reg`` (N, nt) table regions; ``events``;
     ``work_in`` (N,) [J] supplied work; ``dissipated`` (N, k) [J] per element
-    (``model.power_names()``); ``stats`` (steps, rejected steps, nfev, wall time [s]).
+    (``model.power_names()``); ``stats`` (steps, rejected steps, nfev, wall time [s]);
+    ``smoothing`` [rad/s or m/s]: the run's tanh smoothing of the Coulomb laws (None: exact
+    switching), which the torques computed from the result use too.
     """
 
     model: Model
@@ -144,6 +147,11 @@ class SimulationResult:
     status: str
     stats: dict[str, float] = field(default_factory=dict)
     extras: dict[str, Any] = field(default_factory=dict)
+    smoothing: float | None = None
+
+    def _data(self) -> K.ChainData:
+        """The model's arrays as the run used them (with the smoothing, if any)."""
+        return _smoothed(self.model, self.smoothing)
 
     # -- access --------------------------------------------------------------------------------
     def state(self, name: str) -> F64:
@@ -151,10 +159,13 @@ class SimulationResult:
         return self.x[:, self.model.state_index(name)]
 
     def mode_series(self, element: str) -> list[str]:
-        """Mode name of friction element or backlash ``element`` at every sample."""
+        """Mode name of friction element or backlash ``element`` at every sample (``"smoothed"``
+        for every friction element of a run with tanh smoothing: it has no stick/slip modes)."""
         m = self.model
         for f, fi in enumerate(m.frictions):
             if fi.name == element:
+                if self.smoothing is not None:
+                    return ["smoothed"] * self.t.shape[0]
                 return [fi.mode_names[c] for c in self.fm[:, f]]
         for k, ti in enumerate(m.tables):
             if ti.name == element and ti.region_names is not None:
@@ -163,7 +174,7 @@ class SimulationResult:
 
     def coupling_torques(self) -> F64:
         """(N, m) torque of every coupling [N m] in its upstream frame (incl. stuck torques)."""
-        D = self.model.data
+        D = self._data()
         out = np.empty((self.t.shape[0], D.ratio.shape[0]))
         for i in range(self.t.shape[0]):
             _, Lam = K.mode_matrices(D, self.fm[i])
@@ -285,6 +296,16 @@ class SimulationResult:
         return plot_simulation(self, path)
 
 
+def _smoothed(model: Model, smoothing: float | None) -> K.ChainData:
+    """``model.data``, with every Coulomb law smoothed by ``tanh(w / smoothing)`` if given."""
+    D = model.data
+    if smoothing is None:
+        return D
+    eps = np.full(len(model.frictions), float(smoothing))
+    eps.setflags(write=False)  # same numba type as the model's arrays: no recompilation
+    return D._replace(f_eps=eps)
+
+
 def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
     nf = len(model.frictions)
     if el >= nf + len(model.tables):
@@ -399,11 +420,7 @@ def simulate(
         bp_set.add(float(controller.start_time))
     bps = sorted(b for b in bp_set if t0 < b < t_end)
     bps_arr = np.array(bps, dtype=float)
-    D = model.data
-    if opts.smoothing is not None:
-        eps = np.full(len(model.frictions), float(opts.smoothing))
-        eps.setflags(write=False)  # same numba type as the model's arrays: no recompilation
-        D = D._replace(f_eps=eps)
+    D = _smoothed(model, opts.smoothing)
     tic = time.perf_counter()
     out = K.simulate_kernel(
         D,
@@ -458,12 +475,21 @@ def simulate(
         extras={"controller_states": Y[:, nx:nxs], "controller_command": U[:, nu]}
         if controller is not None
         else {},
+        smoothing=opts.smoothing,
     )
     if stat == "zeno" and raise_on_zeno:
         name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
         raise ZenoError(
             f"events accumulate (Zeno) at t = {float(t_last):.9g} s on element {name!r}: "
             f"{opts.zeno_count} events within {opts.zeno_window:g} s"
+        )
+    if stat == "too_many_candidates":
+        raise RuntimeError(
+            f"simulation stopped at t = {float(t_last):.9g} s: more than "
+            f"{K.DM_MAX_CANDIDATES} friction elements are at zero relative speed (within "
+            f"tol_w = {opts.tol_w:g}) at once; deciding them together would try 3^n stuck/slip "
+            "combinations. Start from a state with fewer elements at rest relative to each "
+            "other, or give fewer friction elements."
         )
     if stat not in ("ok", "zeno"):
         raise RuntimeError(f"simulation stopped at t = {float(t_last):.9g} s: {stat}")

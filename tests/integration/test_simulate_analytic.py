@@ -351,6 +351,67 @@ def test_four_body_chain_with_ground_friction_comes_to_rest() -> None:
     np.testing.assert_allclose(res.x[pre, 2], 10.0 - 3.0 * res.t[pre], rtol=1e-12, atol=1e-11)
 
 
+def _dip_case(c: float, t_end: float, opts: SimulationOptions) -> SimulationResult:
+    """One unit body with ground friction F = 5 N m (static = kinetic), torque input
+    T = F + a cos(om t), a / om = 10 rad/s, om = 2 pi 50 rad/s, starting in slip+ at
+    w0 = c a / om: in slip+ w(t) = w0 + (a / om) sin(om t), which touches down near
+    om t = 3 pi / 2 and dips below zero by (1 - c) a / om for c < 1."""
+    om = 2.0 * math.pi * 50.0
+    a, F = 10.0 * om, 5.0
+    body = Body("b", 1.0, torque_input="T", ground_friction=Friction(scale=F, name="ground"))
+    m = Model(Chain((body,), (), inputs=("T",)))
+    torque = sg.constant(F) + sg.sine(a, om, phase=math.pi / 2.0)
+    return simulate(m, [c * a / om], {"T": torque}, t_end=t_end, options=opts)
+
+
+def test_stick_episode_shorter_than_a_step_is_not_stepped_over() -> None:
+    """c = 0.999999: the slip speed of :func:`_dip_case` reaches zero at om t1 = pi + asin(c),
+    where the friction holds (T = F - a s, s = sqrt(1 - c^2), a s = 4.4 N m <= 2 F: T within the
+    capacity, both slip directions inconsistent), and breaks away at om t2 = 3 pi / 2, where T
+    rises through F: a stick episode of (pi / 2 - asin(c)) / om = 4.5 us inside one step of up to
+    h_max = 1 ms, with the guards at both step ends positive. The slip speed's continuous
+    extension shows the dip; the simulator retakes the step up to it."""
+    c = 0.999999
+    om = 2.0 * math.pi * 50.0
+    t1 = (math.pi + math.asin(c)) / om
+    t2 = 1.5 * math.pi / om
+    res = _dip_case(c, 2.5 * math.pi / om, SimulationOptions())
+    got = events_of(res, "ground")
+    assert [(a, b) for _, a, b in got] == [("slip+", "stuck"), ("stuck", "slip+")], got
+    # the touch-down is nearly tangent (slope a s): its time is as good as the slip speed (some
+    # 1e-7 rad/s at rtol 1e-8) over that slope; the break-away is at T = F exactly
+    slope = 10.0 * om * math.sqrt(1.0 - c * c)
+    assert abs(got[0][0] - t1) <= 1e-6 / slope, (got[0][0], t1)
+    assert abs(got[1][0] - t2) <= T_EV, (got[1][0], t2)
+    assert float(np.min(res.x[:, 0])) >= -1e-9  # never negative slip in slip+
+    assert res.stats["steps"] < 200  # found without shortening every step
+
+
+def test_slip_reversal_shorter_than_a_step_is_not_stepped_over() -> None:
+    """c = 0.9999: at t1 (as above) a s = 44 N m > 2 F, so the friction cannot hold: slip-, with
+    w(t) = 2 F (t - t1) + (a / om)(sin(om t) - sin(om t1)) (unit inertia), until that is zero
+    again at t3 (root found numerically), 70 us later: slip+ again."""
+    from scipy.optimize import brentq
+
+    c = 0.9999
+    om = 2.0 * math.pi * 50.0
+    a, F = 10.0 * om, 5.0
+    t1 = (math.pi + math.asin(c)) / om
+
+    def w_neg(t: float) -> float:
+        return 2.0 * F * (t - t1) + (a / om) * (math.sin(om * t) - math.sin(om * t1))
+
+    t3 = brentq(w_neg, t1 + 1e-9, 2.0 * math.pi / om, xtol=1e-15)
+    res = _dip_case(c, 2.5 * math.pi / om, SimulationOptions())
+    got = events_of(res, "ground")
+    assert [(a, b) for _, a, b in got] == [("slip+", "slip-"), ("slip-", "slip+")], got
+    s1 = a * math.sqrt(1.0 - c * c)  # |w'| at t1 in slip+ is a s - 0; in slip- it is a s - 2 F
+    s3 = abs(2.0 * F + a * math.cos(om * t3))
+    assert abs(got[0][0] - t1) <= 1e-6 / s1, (got[0][0], t1)
+    assert abs(got[1][0] - t3) <= 1e-6 / s3, (got[1][0], t3)
+    assert 60e-6 < t3 - t1 < 80e-6
+
+
 # ------------------------------------------------------------------------------------------------
 # 4. an input step breaks a stuck element away exactly at the step
 # ------------------------------------------------------------------------------------------------

@@ -61,3 +61,14 @@ def test_unknown_key_message_unchanged() -> None:
     d["initial"]["throtle"] = 0.5
     with pytest.raises(ScenarioError, match=r"^initial\.throtle: unknown key; did you mean"):
         scenario_from_dict(d)
+
+
+@pytest.mark.parametrize("v", ["abc", True, float("nan")])
+def test_twist_torque_must_be_a_number_and_is_named(v: object) -> None:
+    d = load_scenario("tip-in", params=P).to_dict()
+    assert "twist_torque" in d["initial"]
+    d["initial"]["twist_torque"] = v
+    with pytest.raises(ScenarioError, match=r"^initial\.twist_torque = .*finite number"):
+        scenario_from_dict(d)
+    d["initial"]["twist_torque"] = -12.5
+    assert scenario_from_dict(d).twist_torque0 == -12.5
