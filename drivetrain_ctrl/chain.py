@@ -259,7 +259,11 @@ class LaggedSource:
 
 @dataclass(frozen=True, slots=True)
 class Chain:
-    """A row of bodies joined by couplings (``len(couplings) == len(bodies) - 1``)."""
+    """A row of bodies joined by couplings (``len(couplings) == len(bodies) - 1``).
+
+    ``input_units``: optional unit of each input (e.g. ``{"pedal": "m"}``), shown in the column
+    names of results; an input without one gets no unit (its unit depends on the gain or scale
+    it drives)."""
 
     bodies: tuple[Body, ...]
     couplings: tuple[Coupling, ...]
@@ -267,6 +271,7 @@ class Chain:
     inputs: tuple[str, ...] = ()
     name: str = "chain"
     element_names: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
+    input_units: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
 
     def __post_init__(self) -> None:
         if len(self.bodies) < 1:
@@ -292,6 +297,13 @@ class Chain:
             if s.body not in body_names:
                 raise ValueError(f"source {s.name}: unknown body {s.body!r}; bodies: {body_names}")
             used.append((s.name, s.input))
+        for iname, unit in self.input_units.items():
+            if iname not in self.inputs:
+                raise ValueError(
+                    f"Chain.input_units: {iname!r} is not declared in Chain.inputs {self.inputs}"
+                )
+            if not isinstance(unit, str):
+                raise TypeError(f"Chain.input_units[{iname!r}] = {unit!r}: must be a str")
         for owner, inp in used:
             if inp is not None and inp not in self.inputs:
                 raise ValueError(

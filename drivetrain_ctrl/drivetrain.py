@@ -69,6 +69,8 @@ __all__ = [
 ]
 
 INPUTS: tuple[str, str, str] = ("throttle", "pedal", "brake")
+#: units of the inputs: throttle fraction, clutch pedal (release bearing) travel, brake torque
+INPUT_UNITS: dict[str, str] = {"throttle": "-", "pedal": "m", "brake": "N m"}
 
 
 def _table(t: object, name: str) -> PwlTable:
@@ -209,7 +211,14 @@ def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Cha
             ),
         ),
     )
-    return Chain(bodies, couplings, (src,), INPUTS, name=f"full drivetrain, gear {gear}")
+    return Chain(
+        bodies,
+        couplings,
+        (src,),
+        INPUTS,
+        name=f"full drivetrain, gear {gear}",
+        input_units=dict(INPUT_UNITS),
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -272,7 +281,14 @@ def reduced_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> 
             damper=fig.b_t,
         ),
     )
-    return Chain(bodies, couplings, (src,), INPUTS, name=f"reduced drivetrain, gear {gear}")
+    return Chain(
+        bodies,
+        couplings,
+        (src,),
+        INPUTS,
+        name=f"reduced drivetrain, gear {gear}",
+        input_units=dict(INPUT_UNITS),
+    )
 
 
 class Drivetrain:

@@ -75,6 +75,7 @@ METRIC_KEYS: tuple[str, ...] = (
     "t_end_s",
     "n_samples",
     "n_events",
+    "inconsistent_decisions",
     "lockup_time_s",
     "clutch_energy_J",
     "work_in_J",
@@ -323,6 +324,10 @@ def engagement_metrics(
         ``dt.kind`` (``"full"`` / ``"reduced"``) and the engaged gear (None without ``dt``).
     ``status``, ``t_end_s``, ``n_samples``, ``n_events``
         Simulation status, final time [s], number of samples and of events (mode changes).
+    ``inconsistent_decisions``
+        Mode decisions in which no stuck/slip combination was consistent (the least inconsistent
+        was taken) or guards still fired after the re-checks; 0 in a sound run (``notes`` says
+        so otherwise).
     ``lockup_time_s``
         Lock-up time [s]: the start of the first stuck phase of the clutch that lasts at least
         :data:`LOCKUP_MIN_DURATION_S` = 0.2 s (``res.lockup_time(clutch)``); None if there is none
@@ -419,6 +424,7 @@ def engagement_metrics(
     out["t_end_s"] = float(res.t[-1])
     out["n_samples"] = int(res.t.shape[0])
     out["n_events"] = len(res.events)
+    out["inconsistent_decisions"] = int(res.stats.get("inconsistent_decisions", 0))
 
     # clutch: lock-up, energy, slip acceleration
     fc = _friction_coupling(model, clutch)
@@ -571,4 +577,9 @@ def _engagement_window(
                 out["accel_p2p_after_lock_m_s2"] = float(np.max(a) - np.min(a))
     if out.get("engine_stalled"):
         notes.append("the engine stalled (its friction entered standstill)")
+    if out["inconsistent_decisions"]:
+        notes.append(
+            f"{out['inconsistent_decisions']} mode decision(s) found no consistent stuck/slip "
+            "combination; the least inconsistent was taken (see simulate's warning)"
+        )
     out["notes"] = notes

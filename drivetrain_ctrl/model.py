@@ -158,7 +158,8 @@ class Model:
     """Immutable compiled model of a :class:`Chain`.
 
     Attributes: ``chain``, ``data`` (:class:`~drivetrain_ctrl.kernels.ChainData`),
-    ``state_names``, ``state_units``, ``input_names``, ``frictions``, ``tables``.
+    ``state_names``, ``state_units``, ``input_names``, ``input_units`` (``""`` where the chain
+    gives none), ``frictions``, ``tables``.
     """
 
     __slots__ = (
@@ -167,6 +168,7 @@ class Model:
         "state_names",
         "state_units",
         "input_names",
+        "input_units",
         "frictions",
         "tables",
         "_frozen",
@@ -326,6 +328,7 @@ class Model:
         self.state_names = tuple(names)
         self.state_units = tuple(units)
         self.input_names = tuple(inputs)
+        self.input_units = tuple(chain.input_units.get(n, "") for n in inputs)
         self.frictions = tuple(finfo)
         self.tables = tuple(infos)
         self._frozen = True

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -244,7 +245,13 @@ class SimulationResult:
         return out
 
     def to_dataframe(self) -> pd.DataFrame:
-        """Samples as a pandas DataFrame; column names carry units, e.g. ``omega_engine [rad/s]``."""
+        """Samples as a pandas DataFrame; column names carry units, e.g. ``omega_engine [rad/s]``.
+
+        Coupling torques ``T_<coupling>`` are in the frame of the coupling's upstream body (e.g.
+        ``T_axle``: the secondary shaft's); a coupling with a ratio also has ``T_<coupling>_out``,
+        ratio times that: the torque on its downstream body in that body's frame (``T_axle_out``:
+        the half-shaft torque at the wheels). Inputs are ``input_<name> [<unit>]`` where the
+        chain gives units (the drivetrain: throttle [-], pedal [m], brake [N m])."""
         import pandas as pd
 
         cols: dict[str, Any] = {"t [s]": self.t}
@@ -252,13 +259,18 @@ class SimulationResult:
             zip(self.model.state_names, self.model.state_units, strict=True)
         ):
             cols[f"{nm} [{un}]"] = self.x[:, j]
-        for j, nm in enumerate(self.model.input_names):
-            cols[f"input_{nm}"] = self.u[:, j]
+        for j, (nm, un) in enumerate(
+            zip(self.model.input_names, self.model.input_units, strict=True)
+        ):
+            cols[f"input_{nm} [{un}]" if un else f"input_{nm}"] = self.u[:, j]
         T = self.coupling_torques()
         bodies = self.model.chain.bodies
         for c, cp in enumerate(self.model.chain.couplings):
             up = "N m" if bodies[c].kind == "rotational" else "N"
             cols[f"T_{cp.name} [{up}]"] = T[:, c]
+            if cp.ratio != 1.0 and bodies[c + 1].kind == bodies[c].kind:
+                # e.g. the axle: the torque on the downstream body, in its frame (at the wheel)
+                cols[f"T_{cp.name}_out [{up}]"] = cp.ratio * T[:, c]
             if bodies[c + 1].kind == "translational" and bodies[c].kind == "rotational":
                 # e.g. the tyre: the force on the vehicle
                 cols[f"F_{cp.name} [N]"] = cp.ratio * T[:, c]
@@ -493,4 +505,13 @@ def simulate(
         )
     if stat not in ("ok", "zeno"):
         raise RuntimeError(f"simulation stopped at t = {float(t_last):.9g} s: {stat}")
+    if nincons > 0:
+        warnings.warn(
+            f"{int(nincons)} mode decision(s) found no consistent stuck/slip combination (or "
+            "guards still fired after 20 re-checks); the least inconsistent one was taken. "
+            "The trajectory may be wrong near those events: check the model's capacities and "
+            "inputs, or lower tol_w (res.stats['inconsistent_decisions']).",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     return res

@@ -72,7 +72,17 @@ def test_to_dataframe_columns_carry_units_and_values() -> None:
     np.testing.assert_array_equal(df["T_clutch [N m]"].to_numpy(), res.coupling_torques()[:, 0])
     np.testing.assert_allclose(df["stored_energy [J]"].to_numpy(), res.stored_energy())
     # the inputs are there too (throttle [-], pedal [m], brake [N m])
-    np.testing.assert_array_equal(df["input_pedal"].to_numpy(), res.u[:, 1])
+    np.testing.assert_array_equal(df["input_pedal [m]"].to_numpy(), res.u[:, 1])
+    assert {"input_throttle [-]", "input_brake [N m]"} <= cols
+    # the axle torque also at the wheels: ratio D_c times the secondary-frame torque; its peak is
+    # the metrics' peak_axle_torque_Nm
+    from drivetrain_ctrl.metrics import engagement_metrics
+
+    ratio = float(dt.model.data.ratio[[c.name for c in dt.model.chain.couplings].index("axle")])
+    assert ratio > 1.0
+    np.testing.assert_allclose(df["T_axle_out [N m]"], ratio * df["T_axle [N m]"], rtol=1e-15)
+    peak = engagement_metrics(res, dt)["peak_axle_torque_Nm"]
+    assert float(np.max(np.abs(df["T_axle_out [N m]"]))) == pytest.approx(peak, rel=1e-8)
 
 
 def test_to_dataframe_without_energy_and_residual_needs_energy() -> None:
@@ -298,3 +308,25 @@ def test_non_finite_constant_input_names_the_input() -> None:
 def test_energy_option_must_be_bool() -> None:
     with pytest.raises((TypeError, ValueError), match="energy"):
         SimulationOptions(energy="yes")  # type: ignore[arg-type]
+
+
+def test_smoothed_run_reports_the_smoothed_torques_and_no_stick_slip_modes() -> None:
+    """With ``smoothing`` eps the clutch transmits ``50 tanh(w / eps)`` N m: the result's coupling
+    torque is that (not the exact law's 50 N m), and its mode is 'smoothed' throughout."""
+    m, u, x0 = small()
+    eps = 30.0  # wide: the smoothing matters over most of the run
+    res = simulate(m, x0, u, t_end=0.5, options=SimulationOptions(smoothing=eps))
+    assert res.smoothing == eps
+    w = res.x[:, 0] - res.x[:, 1]
+    T = res.coupling_torques()[:, 0]
+    np.testing.assert_allclose(T, 50.0 * np.tanh(w / eps), rtol=1e-12, atol=1e-12)
+    assert np.ptp(T) > 10.0  # really varies with w
+    assert set(res.mode_series("clutch")) == {"smoothed"}
+    df = res.to_dataframe()
+    assert set(df["mode_clutch"]) == {"smoothed"}
+    np.testing.assert_allclose(df["T_clutch [N m]"], T)
+    # the exact run still reports the stick/slip modes and the exact law's torque while slipping
+    exact = simulate(m, x0, u, t_end=0.5)
+    assert exact.smoothing is None
+    assert exact.mode_series("clutch")[0] == "slip+"
+    assert exact.coupling_torques()[0, 0] == pytest.approx(50.0)

@@ -251,3 +251,20 @@ def test_two_body_clutch() -> None:
     assert ch.bodies[1].tracks_position and not ch.bodies[0].tracks_position
     ch2 = two_body_clutch(0.2, 0.05, capacity=80.0)
     assert ch2.inputs == ("torque1",) and ch2.couplings[0].friction.scale == 80.0
+
+
+def test_input_units_are_checked_and_reach_the_model_and_dataframe() -> None:
+    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction
+    from drivetrain_ctrl.model import Model
+    from drivetrain_ctrl.simulate import simulate
+
+    bodies = (Body("a", 1.0, torque_input="T"), Body("b", 2.0))
+    cps = (Coupling("c", friction=Friction(capacity_input="cap", name="c")),)
+    with pytest.raises(ValueError, match=r"input_units: 'torque' is not declared"):
+        Chain(bodies, cps, inputs=("T", "cap"), input_units={"torque": "N m"})
+    with pytest.raises(TypeError, match=r"input_units\['T'\] = 3: must be a str"):
+        Chain(bodies, cps, inputs=("T", "cap"), input_units={"T": 3})  # type: ignore[dict-item]
+    m = Model(Chain(bodies, cps, inputs=("T", "cap"), input_units={"T": "N m"}))
+    assert m.input_units == ("N m", "")
+    df = simulate(m, [1.0, 0.0], {"T": 2.0, "cap": 5.0}, t_end=0.1).to_dataframe()
+    assert "input_T [N m]" in df.columns and "input_cap" in df.columns

@@ -187,3 +187,31 @@ def test_filtered_jerk_checks_its_arrays() -> None:
     tr = np.array([0.0, 0.5, 0.5, 1.0])
     g, af, jk = filtered_jerk(tr, np.array([0.0, 1.0, 1.0, 2.0]))
     assert np.allclose(jk[200:-200], 2.0, rtol=1e-3)
+
+
+def test_inconsistent_decisions_are_reported_not_silent(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A kernel that reports inconsistent mode decisions (the least inconsistent combination
+    taken): ``simulate`` warns, and the metrics carry the count and a note."""
+    import dataclasses
+
+    from drivetrain_ctrl import simulate as S
+
+    res = run(40.0)
+    m = metrics(res)
+    assert m["inconsistent_decisions"] == 0
+    assert not any("consistent" in n for n in m["notes"])
+    bad = dataclasses.replace(res, stats={**res.stats, "inconsistent_decisions": 2})
+    m = metrics(bad)
+    assert m["inconsistent_decisions"] == 2
+    assert any(n.startswith("2 mode decision(s) found no consistent") for n in m["notes"])
+
+    real = S.K.simulate_kernel
+
+    def kernel_with_bad_decisions(*args: object) -> tuple:
+        out = real(*args)
+        return (*out[:-1], 3)  # the last output: the count of inconsistent decisions
+
+    monkeypatch.setattr(S.K, "simulate_kernel", kernel_with_bad_decisions)
+    with pytest.warns(RuntimeWarning, match=r"^3 mode decision\(s\) found no consistent"):
+        res3 = run(40.0)
+    assert res3.stats["inconsistent_decisions"] == 3
