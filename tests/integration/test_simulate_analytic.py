@@ -412,6 +412,35 @@ def test_slip_reversal_shorter_than_a_step_is_not_stepped_over() -> None:
     assert 60e-6 < t3 - t1 < 80e-6
 
 
+def test_spring_knee_event_times() -> None:
+    """Two unit bodies, spring torque 0 for |q| < 0.1 rad, slope 100 N m/rad to 0.2 rad, 300
+    beyond; from w = omega1 - omega2 = 2 rad/s, q = 0 (w' = -2 T(q)):
+    t1 = 0.05 s (free flight to the first knee); then q - 0.1 = (2 / W1) sin(W1 tau), W1 =
+    sqrt(200), reaching 0.2 at W1 tau = pi / 4 (t2), with w = sqrt(2); beyond, p = q - 0.2 obeys
+    p'' = -2 (10 + 300 p): p = (cos(W2 tau) - 1) / 30 + (sqrt(2) / W2) sin(W2 tau), W2 = sqrt(600),
+    back to 0 at W2 tau = 2 atan(30 sqrt(2) / W2) = 2 pi / 3 (t3); then by symmetry back at 0.1
+    after another pi / (4 W1) (t4)."""
+    sp = Spring((0.0, 0.1, 0.2, 0.3), (0.0, 0.0, 10.0, 40.0), name="s")
+    m = Model(Chain((Body("b1", 1.0), Body("b2", 1.0)), (Coupling("s", spring=sp),)))
+    res = simulate(m, np.array([2.0, 0.0, 0.0]), {}, t_end=0.3)
+    w1, w2 = math.sqrt(200.0), math.sqrt(600.0)
+    t1 = 0.05
+    t2 = t1 + math.pi / 4.0 / w1
+    t3 = t2 + 2.0 * math.atan(30.0 * math.sqrt(2.0) / w2) / w2
+    t4 = t3 + math.pi / 4.0 / w1
+    got = events_of(res, "s.spring")
+    # segments of the odd table counted from the most negative one (0: q < -0.2, 1, 2: |q| < 0.1)
+    assert [(a, b) for _, a, b in got] == [
+        ("segment 2", "segment 3"),
+        ("segment 3", "segment 4"),
+        ("segment 4", "segment 3"),
+        ("segment 3", "segment 2"),
+    ], got
+    for (tg, *_), te in zip(got, (t1, t2, t3, t4), strict=True):
+        assert abs(tg - te) <= T_EV, (tg, te, tg - te)
+    assert res.stats["knee_crossings"] == 4
+
+
 # ------------------------------------------------------------------------------------------------
 # 4. an input step breaks a stuck element away exactly at the step
 # ------------------------------------------------------------------------------------------------

@@ -134,3 +134,38 @@ def test_max_events_is_enforced_for_breakpoint_events() -> None:
     series = res.mode_series("clutch")
     changes = sum(a != b for a, b in zip(series[:-1], series[1:], strict=True))
     assert len(res.events) == changes == 10
+
+
+def test_relay_sliding_mode_is_a_real_zeno_case_at_default_settings() -> None:
+    """A relay (torque -10 sgn(w) N m on body 1, w = omega1 - omega2) on two unit bodies joined by
+    a unit spring, from w = 5 rad/s, q = 0: w' = -10 - 2 q, so w = 5 cos(r t) - (10 / r) sin(r t)
+    with r = sqrt(2), zero at t* = atan(r / 2) / r = 0.4352 s. There the spring torque (2 q < 10)
+    cannot hold the relay off: it switches ever faster (no stuck mode holds a controller's sign).
+    With the default zeno_count / zeno_window the run ends there with a ZenoError naming the
+    controller, within the milliseconds the switching takes to accumulate."""
+    import control
+
+    from drivetrain_ctrl.chain import Spring
+    from drivetrain_ctrl.closedloop import Controller
+    from drivetrain_ctrl.signals import constant
+
+    ch = Chain(
+        (Body("b1", 1.0, torque_input="torque"), Body("b2", 1.0)),
+        (Coupling("s", spring=Spring.linear(1.0, name="s")),),
+        inputs=("torque",),
+    )
+    c = Controller(
+        lti=control.ss([], [], [], [[-10.0]]),
+        measurement=((1.0, "ref"),),
+        reference=constant(1.0),
+        output="torque",
+        sign_of=("omega_b1", "omega_b2"),
+    )
+    r = np.sqrt(2.0)
+    t_star = float(np.arctan(r / 2.0) / r)
+    with pytest.raises(ZenoError) as exc:
+        simulate(Model(ch), np.array([5.0, 0.0, 0.0]), {}, t_end=2.0, controller=c)
+    m = ZENO_MSG.search(str(exc.value))
+    assert m is not None, str(exc.value)
+    assert m.group(2) == "controller"
+    assert t_star <= float(m.group(1)) < t_star + 1e-3
