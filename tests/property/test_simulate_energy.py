@@ -1,6 +1,7 @@
 """Energy balance of whole simulations: ``E(t_end) - E(0) = W_in - sum(E_diss)`` to 1e-6
 (relative, :attr:`SimulationResult.energy_residual_rel`) with the default options, for parameter
-sets perturbed by up to +-30 % around the passenger car, on the ``engage-ramp`` manoeuvre."""
+sets perturbed by up to +-30 % around the passenger car, with random static/kinetic friction ratios
+in [1, 1.5], on the ``engage-ramp`` and ``tip-in`` manoeuvres."""
 
 from __future__ import annotations
 
@@ -29,8 +30,18 @@ FACTORS = (
     "vehicle.M_v",
 )
 
+#: static/kinetic ratios drawn in [1, 1.5] (breakaway above sliding: stick phases hold longer)
+STATIC_RATIOS = (
+    "engine.static_ratio",
+    "clutch.static_ratio",
+    "damper.static_ratio",
+    "vehicle.rolling_static_ratio",
+    "vehicle.tyre_static_ratio",
+)
+
 factor = st.floats(0.7, 1.3, allow_nan=False)
 factors = st.fixed_dictionaries({k: factor for k in FACTORS})
+ratios = st.fixed_dictionaries({k: st.floats(1.0, 1.5, allow_nan=False) for k in STATIC_RATIOS})
 
 
 def perturbed(f: dict[str, float]) -> DrivetrainParams:
@@ -46,8 +57,12 @@ def perturbed(f: dict[str, float]) -> DrivetrainParams:
     return p.replace(**changes)
 
 
-def run_engage(p: DrivetrainParams, kind: str) -> SimulationResult:
-    sc = builtin_scenarios()["engage-ramp"]
+def with_ratios(p: DrivetrainParams, r: dict[str, float]) -> DrivetrainParams:
+    return p.replace(**r)
+
+
+def run_engage(p: DrivetrainParams, kind: str, name: str = "engage-ramp") -> SimulationResult:
+    sc = builtin_scenarios()[name]
     dt = sc.drivetrain(p, kind=kind)
     return simulate(dt.model, sc.initial_state(dt), sc.input_signals(), t_end=sc.t_end)
 
@@ -75,6 +90,18 @@ def test_energy_residual_reduced_model(f: dict[str, float]) -> None:
 @given(f=factors)
 def test_energy_residual_full_model(f: dict[str, float]) -> None:
     check(run_engage(perturbed(f), "full"))
+
+
+@settings(max_examples=3, **SETTINGS)
+@given(f=factors, r=ratios)
+def test_energy_residual_full_model_static_ratios(f: dict[str, float], r: dict[str, float]) -> None:
+    check(run_engage(with_ratios(perturbed(f), r), "full"))
+
+
+@settings(max_examples=3, **SETTINGS)
+@given(f=factors, r=ratios)
+def test_energy_residual_full_model_tip_in(f: dict[str, float], r: dict[str, float]) -> None:
+    check(run_engage(with_ratios(perturbed(f), r), "full", "tip-in"))
 
 
 @pytest.mark.slow
