@@ -569,7 +569,8 @@ def decide_modes(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tol: float) ->
     stuck / slip+ / slip- combinations the consistent one with the most elements stuck is taken
     (stuck torques within static capacity, slip directions agreeing with the accelerations).
     Returns the number of candidates (or ``-1`` if no combination was consistent and the least
-    inconsistent one was taken; ``DM_TOO_MANY`` if more than ``DM_MAX_CANDIDATES`` elements are
+    inconsistent one was taken; a round-off tie, total violation at most ``DM_TIE_VIOLATION``,
+    counts as consistent; ``DM_TOO_MANY`` if more than ``DM_MAX_CANDIDATES`` elements are
     candidates, ``fm`` then unchanged). The simulator makes the same decision through the same functions
     (:func:`_dm_classify_core`, :func:`_project_cached`, :func:`_dm_combos`) with caches kept over
     the run.
@@ -1752,6 +1753,9 @@ def stable_step_exact(fm, reg, hcache, jcache):  # type: ignore[no-untyped-def]
 
 #: return code of :func:`_dm_combos`: the mode matrices of ``trial`` are not in the cache
 DM_MISS = -2
+#: largest total violation of the least inconsistent combination that :func:`_dm_combos` still
+#: reports as consistent (round-off ties; the combination taken is the same either way)
+DM_TIE_VIOLATION = 1e-9
 #: :func:`decide_modes` / :func:`_decide_fast`: more candidates than ``DM_MAX_CANDIDATES``
 DM_TOO_MANY = -3
 #: most elements decided together at one event: the decision tries up to 3^n combinations
@@ -1975,7 +1979,11 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, m
         d = c % 3
         c //= 3
         fm[idx[jj]] = STUCK if d == 0 else (SLIP_POS if d == 1 else SLIP_NEG)
-    return -1
+    # a violation this small is a stuck torque beyond its static capacity by round-off only (a
+    # slip direction against the acceleration counts at least 1): a tie at a break-away with
+    # static = kinetic capacity, where stuck is taken and the guard fires right after; not counted
+    # as inconsistent
+    return nc if best_viol <= DM_TIE_VIOLATION else -1
 
 
 @jit_inline
