@@ -330,3 +330,28 @@ def test_smoothed_run_reports_the_smoothed_torques_and_no_stick_slip_modes() -> 
     assert exact.smoothing is None
     assert exact.mode_series("clutch")[0] == "slip+"
     assert exact.coupling_torques()[0, 0] == pytest.approx(50.0)
+
+
+def test_plot_overview_saves_a_png_with_four_panels(tmp_path: object) -> None:
+    """``res.plot(path)`` (matplotlib only in the plotting layer): speeds, torques, inputs and a
+    mode strip with one row per friction element and backlash; the title counts the events."""
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    res = tip_in()
+    path = Path(str(tmp_path)) / "overview.png"
+    fig = res.plot(str(path))
+    try:
+        assert path.stat().st_size > 10_000
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert len(fig.axes) >= 4
+        assert f"{len(res.events)} events" in fig._suptitle.get_text()
+        strip = fig.axes[3]
+        labels = [t.get_text() for t in strip.get_yticklabels()]
+        moded = [f.name for f in res.model.frictions] + [
+            t.name for t in res.model.tables if t.region_names is not None
+        ]
+        assert set(moded) <= set(labels), labels
+    finally:
+        plt.close(fig)
