@@ -145,9 +145,12 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     model = res.model
     t = res.t
     bodies = [b.name for b in model.chain.bodies]
-    moded: list[tuple[str, NDArray[Any], bool]] = [
-        (fi.name, res.fm[:, f], False) for f, fi in enumerate(model.frictions)
-    ]
+    # a smoothed run's friction elements have no stick/slip modes: only its backlash in the strip
+    moded: list[tuple[str, NDArray[Any], bool]] = (
+        [(fi.name, res.fm[:, f], False) for f, fi in enumerate(model.frictions)]
+        if res.smoothing is None
+        else []
+    )
     for k, ti in enumerate(model.tables):
         if ti.region_names is not None:
             moded.append((ti.name, res.reg[:, k], True))
@@ -156,6 +159,8 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     ax_w, ax_T, ax_u, ax_m = fig.axes
     ip = _primary_index(model)
     title = f"{model.chain.name}: status {res.status}, {len(res.events)} events"
+    if res.smoothing is not None:
+        title += f", friction smoothed (tanh, {res.smoothing:g})"
     t_lock = _lockup(res)
     if t_lock is not None:
         title += f", clutch lock-up at {t_lock:.3f} s"
@@ -170,13 +175,16 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
         "hub": ("wheels (at primary)", "C2", "-", 1.3, 3),
         "vehicle": ("vehicle (at primary)", "C4", ":", 1.5, 3),
     }
+    drivetrain = any(b.name in styles for b in model.chain.bodies)
     for i, b in enumerate(model.chain.bodies):
-        if b.name not in styles:
-            continue
-        label, col, ls, lw, z = styles[b.name]
-        w = res.x[:, i] * _to_primary_factor(model, i, ip) / RPM_TO_RAD_S
-        ax_w.plot(t, w, color=col, ls=ls, lw=lw, zorder=z, label=label)
-    ax_w.set_ylabel("speed [rpm]\n(primary-shaft frame)")
+        if drivetrain and b.name in styles:
+            label, col, ls, lw, z = styles[b.name]
+            w = res.x[:, i] * _to_primary_factor(model, i, ip) / RPM_TO_RAD_S
+            ax_w.plot(t, w, color=col, ls=ls, lw=lw, zorder=z, label=label)
+        elif not drivetrain and b.kind == "rotational":
+            # a general chain: every rotational body in its own frame
+            ax_w.plot(t, res.x[:, i] / RPM_TO_RAD_S, lw=1.3, label=b.name)
+    ax_w.set_ylabel("speed [rpm]\n(primary-shaft frame)" if drivetrain else "speed [rpm]")
     ax_w.legend(loc="best", fontsize=8, ncol=2)
     if "vehicle" in bodies:
         f_v = _to_primary_factor(model, bodies.index("vehicle"), ip)  # (rad/s) per (m/s)

@@ -325,6 +325,16 @@ def test_smoothed_run_reports_the_smoothed_torques_and_no_stick_slip_modes() -> 
     df = res.to_dataframe()
     assert set(df["mode_clutch"]) == {"smoothed"}
     np.testing.assert_allclose(df["T_clutch [N m]"], T)
+    import matplotlib.pyplot as plt
+
+    fig = res.plot()
+    try:
+        assert "friction smoothed (tanh, 30)" in fig._suptitle.get_text()
+        assert "clutch" not in [t.get_text() for t in fig.axes[3].get_yticklabels()]
+        # a general chain's speeds: every body, by name
+        assert [ln.get_label() for ln in fig.axes[0].get_lines()][:2] == ["b1", "b2"]
+    finally:
+        plt.close(fig)
     # the exact run still reports the stick/slip modes and the exact law's torque while slipping
     exact = simulate(m, x0, u, t_end=0.5)
     assert exact.smoothing is None
