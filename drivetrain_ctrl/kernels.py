@@ -881,6 +881,10 @@ CS_SIGN, CS_SAT, CS_LK, CS_RL, CS_LATCH, CS_TL, CS_VL, CS_HELD, CS_TR, CS_D0, CS
 #: latch states (``cs[CS_LATCH]``): armed, ramping to the target, holding the target, re-armed
 #: after a re-slip with the offset ``cs[CS_D0]`` (taken at ``cs[CS_TR]``) ramping out
 LATCH_ARMED, LATCH_RAMP, LATCH_HELD, LATCH_REARMED = 0.0, 1.0, 2.0, 3.0
+#: controller blocks whose discrete state changes are listed as events, element index
+#: ``nf + nt + k`` for block k = the state ``cs[k]``: sign, saturation, lookup segment, rate
+#: limiter, latch (CS_SIGN .. CS_LATCH are 0 .. 4)
+N_CL_EVENT_BLOCKS = 5
 N_CL_GUARDS = 8
 
 
@@ -2344,14 +2348,17 @@ def _redecide(  # type: ignore[no-untyped-def]
     """At an event or a stop: decide the modes (:func:`_decide_fast`), look up the mode's
     stability bound and append the mode changes to the event list. ``MM = (mmask, mP, mPT, mL,
     mst)`` mode-matrix cache, ``SC = (hcache, jcache, lcache)`` stability-bound caches, ``EV =
-    (ev_t, ev_el, ev_from, ev_to)`` event list (tuples: CPython passes a call of more than 30
-    arguments as ``*args``, which numba cannot inline). Returns ``(slot, n_bad, h_stab,
-    stab_exact, n_ev)``."""
+    (ev_t, ev_el, ev_from, ev_to, cs_old)`` event list and work array (tuples: CPython passes a
+    call of more than 30 arguments as ``*args``, which numba cannot inline). The controller's
+    block states that the decision changes are listed too (element ``nf + nt + k``, see
+    ``N_CL_EVENT_BLOCKS``). Returns ``(slot, n_bad, h_stab, stab_exact, n_ev)``."""
     mmask, mP, mPT, mL, mst = MM
     hcache, jcache, lcache = SC
-    ev_t, ev_el, ev_from, ev_to = EV
+    ev_t, ev_el, ev_from, ev_to, cs_old = EV
     fm_old[:] = fm
     reg_old[:] = reg
+    for k in range(N_CL_EVENT_BLOCKS):
+        cs_old[k] = cs[k]
     slot, nb = _decide_fast(
         D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
     )
@@ -2359,6 +2366,15 @@ def _redecide(  # type: ignore[no-untyped-def]
         return slot, nb, 0.0, True, n_ev
     h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
     n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
+    if Cd.ci[CI_OUT] >= 0:
+        base = fm.shape[0] + reg.shape[0]
+        for k in range(N_CL_EVENT_BLOCKS):
+            if cs[k] != cs_old[k] and n_ev < ev_t.shape[0]:
+                ev_t[n_ev] = t
+                ev_el[n_ev] = base + k
+                ev_from[n_ev] = int(cs_old[k])
+                ev_to[n_ev] = int(cs[k])
+                n_ev += 1
     return slot, nb, h_stab, stab_exact, n_ev
 
 
@@ -2446,10 +2462,12 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
     U = np.empty((cap, nu + 1))  # last column: the controller command (see cl_command)
     FM = np.empty((cap, nf), dtype=np.int64)
     RG = np.empty((cap, nt), dtype=np.int64)
-    ev_t = np.empty(max_events + nf + nt)
-    ev_el = np.empty(max_events + nf + nt, dtype=np.int64)
-    ev_from = np.empty(max_events + nf + nt, dtype=np.int64)
-    ev_to = np.empty(max_events + nf + nt, dtype=np.int64)
+    n_ev_room = max_events + nf + nt + N_CL_EVENT_BLOCKS
+    ev_t = np.empty(n_ev_room)
+    ev_el = np.empty(n_ev_room, dtype=np.int64)
+    ev_from = np.empty(n_ev_room, dtype=np.int64)
+    ev_to = np.empty(n_ev_room, dtype=np.int64)
+    cs_old = np.zeros(N_CL_EVENT_BLOCKS)
     n_ev = 0
     n_steps = 0
     n_rej = 0
@@ -2671,7 +2689,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             slot, nb, h_stab, stab_exact, n_ev = _redecide(
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
                 W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
-                (ev_t, ev_el, ev_from, ev_to), n_ev,
+                (ev_t, ev_el, ev_from, ev_to, cs_old), n_ev,
             )  # fmt: skip
             if nb == DM_TOO_MANY:
                 status = TOO_MANY_CANDIDATES
@@ -2679,8 +2697,10 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
             n_incons += nb
             if event:
                 # the Zeno check counts the events located on the trajectory (a controller guard
-                # too), not the decisions at stops
+                # once, below, however many of its blocks changed), not the decisions at stops
                 for e in range(n_old, n_ev):
+                    if ev_el[e] >= nf + nt:
+                        continue
                     zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
                     if hit:
                         status = ZENO
@@ -2727,7 +2747,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
 
     n_knee = 0
     for e in range(n_ev):
-        if ev_el[e] >= nf:
+        if nf <= ev_el[e] < nf + nt:
             n_knee += 1
     return (
         T[:n_rec],

@@ -323,7 +323,8 @@ def engagement_metrics(
     ``model``, ``gear``
         ``dt.kind`` (``"full"`` / ``"reduced"``) and the engaged gear (None without ``dt``).
     ``status``, ``t_end_s``, ``n_samples``, ``n_events``
-        Simulation status, final time [s], number of samples and of events (mode changes).
+        Simulation status, final time [s], number of samples and of events (mode changes of
+        the model's elements and, in closed loop, of the controller's blocks).
     ``inconsistent_decisions``
         Mode decisions in which no stuck/slip combination was consistent (the least inconsistent
         was taken) or guards still fired after the re-checks; 0 in a sound run (``notes`` says

@@ -103,7 +103,9 @@ class SimulationOptions:
 
 
 class Event(NamedTuple):
-    """A mode change: time [s], element name, from-mode and to-mode names.
+    """A mode change: time [s], element name, from-mode and to-mode names. The element is a
+    friction element, a table (backlash, spring, capacity map) or, in closed loop, a controller
+    block (``controller.sign``, ``.saturation``, ``.lookup``, ``.rate_limit``, ``.latch``).
 
     A named tuple (immutable; built hundreds of times per run, where a frozen dataclass's
     ``__init__`` cost about 1 us each)."""
@@ -318,10 +320,25 @@ def _smoothed(model: Model, smoothing: float | None) -> K.ChainData:
     return D._replace(f_eps=eps)
 
 
+#: the controller blocks listed in the event list (kernel element ``nf + nt + k``, see
+#: ``kernels.N_CL_EVENT_BLOCKS``): element name and the names of its state codes
+CONTROLLER_BLOCKS: tuple[tuple[str, dict[int, str] | None], ...] = (
+    ("controller.sign", {-1: "-", 0: "unset", 1: "+"}),
+    ("controller.saturation", {0: "low", 1: "linear", 2: "high"}),
+    ("controller.lookup", None),  # "segment k"
+    ("controller.rate_limit", {0: "falling", 1: "tracking", 2: "rising"}),
+    ("controller.latch", {0: "armed", 1: "ramp", 2: "held", 3: "rearmed"}),
+)
+
+
 def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
     nf = len(model.frictions)
     if el >= nf + len(model.tables):
-        return "controller", str(code)
+        k = el - nf - len(model.tables)
+        if k >= len(CONTROLLER_BLOCKS):
+            return "controller", str(code)
+        name, codes = CONTROLLER_BLOCKS[k]
+        return name, codes.get(code, str(code)) if codes is not None else f"segment {code}"
     if el < nf:
         fi = model.frictions[el]
         return fi.name, fi.mode_names[code]
@@ -490,7 +507,11 @@ def simulate(
         smoothing=opts.smoothing,
     )
     if stat == "zeno" and raise_on_zeno:
-        name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
+        el = int(status_el)
+        nft = len(model.frictions) + len(model.tables)
+        name = (
+            "controller" if el >= nft else _element_mode_name(model, el, 0)[0] if el >= 0 else "?"
+        )
         raise ZenoError(
             f"events accumulate (Zeno) at t = {float(t_last):.9g} s on element {name!r}: "
             f"{opts.zeno_count} events within {opts.zeno_window:g} s"

@@ -394,3 +394,29 @@ def test_short_damper_stick_episode_matches_a_run_with_tiny_steps() -> None:
     assert [(e.from_mode, e.to_mode) for e in ep] == [("slip+", "stuck"), ("stuck", "slip+")]
     assert 30e-6 < ep[1].t - ep[0].t < 50e-6
     assert res.stats["steps"] < 0.1 * fine.stats["steps"]
+
+
+def test_controller_block_changes_are_in_the_event_list() -> None:
+    """Closed loop (law (6) and PI, reduced model): the latch arms -> ramps at the clutch's lock
+    event, at the same time, and is held once the ramp reaches full engagement; the PI saturates
+    at the stroke at its start (0.5 s) and leaves it. Plant events are the same as without these
+    entries (the controller's are extra rows)."""
+    dt = SC.drivetrain(P, kind="reduced")
+    for ctl in ("paper", "pi"):
+        res = SC.run(dt, controller=ctl)
+        ev = res.events
+        lock = [e for e in ev if e.element == "clutch" and e.to_mode == "stuck"]
+        latch = [e for e in ev if e.element == "controller.latch"]
+        assert [(e.from_mode, e.to_mode) for e in latch] == [("armed", "ramp"), ("ramp", "held")]
+        assert latch[0].t == lock[0].t
+        assert latch[1].t > latch[0].t
+        # the plant's events are those of the model's elements, the controller's extra rows
+        plant = {f.name for f in dt.model.frictions} | {t.name for t in dt.model.tables}
+        assert {e.element for e in ev} - plant <= {
+            f"controller.{b}" for b in ("latch", "sign", "saturation")
+        }
+        df = res.events_dataframe()
+        assert (df["element"] == "controller.latch").sum() == 2
+    sat = [(e.t, e.from_mode, e.to_mode) for e in ev if e.element == "controller.saturation"]
+    assert sat[0] == (SC.start_time, "linear", "high")
+    assert sat[1][1:] == ("high", "linear")
