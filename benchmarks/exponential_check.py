@@ -45,7 +45,6 @@ Dormand-Prince.
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -62,6 +61,7 @@ sys.path.insert(0, str(HERE))
 
 from bench_simulate import run_tanh, scenario_setup  # noqa: E402
 from order_check import longest_segment  # noqa: E402
+from results_io import write_json  # noqa: E402
 
 from drivetrain_ctrl import kernels as K  # noqa: E402
 from drivetrain_ctrl.model import Mode  # noqa: E402
@@ -462,10 +462,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['ours_s'] * 1e3:.1f} ms); tanh baseline {r['tanh_s'] * 1e3:.0f} ms; speedup "
             f"at most {r['speedup_vs_tanh_upper_bound']:.0f}x"
         )
-    a.out.mkdir(parents=True, exist_ok=True)
-    path = a.out / "exponential_check.json"
-    path.write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
-    print(f"\nwrote {path}")
+    print()
+    write_json(a.out, "exponential_check.json", result)
     return 0
 
 

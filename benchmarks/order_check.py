@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from results_io import write_json
 from scipy.integrate import solve_ivp
 
 from drivetrain_ctrl.model import Mode
@@ -151,10 +151,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         r = check_segment(name, rtols)
         if r is not None:
             out[name] = r
-    a.out.mkdir(parents=True, exist_ok=True)
-    path = a.out / "order_check.json"
-    path.write_text(json.dumps(out, indent=2, sort_keys=True) + "\n")
-    print(f"wrote {path}")
+    write_json(a.out, "order_check.json", out)
     return 0
 
 

@@ -26,7 +26,6 @@ Writes ``step_limits.json`` (default ``benchmarks/results/``) and prints a summa
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import time
@@ -40,6 +39,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from bench_simulate import run_tanh, scenario_setup  # noqa: E402
+from results_io import write_json  # noqa: E402
 
 from drivetrain_ctrl import kernels as K  # noqa: E402
 from drivetrain_ctrl.linear import natural_frequency_damping  # noqa: E402
@@ -223,10 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{1e3 * r['best_time_at_h_max_s']:.2f} ms: at most "
             f"{r['speedup_vs_tanh_bound_at_h_max']:.0f}x"
         )
-    a.out.mkdir(parents=True, exist_ok=True)
-    path = a.out / "step_limits.json"
-    path.write_text(json.dumps(out, indent=2, sort_keys=True) + "\n")
-    print(f"wrote {path}")
+    write_json(a.out, "step_limits.json", out)
     return 0
 
 

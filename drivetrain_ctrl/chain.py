@@ -23,7 +23,7 @@ blocks.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 __all__ = [
@@ -297,6 +297,10 @@ class Chain:
             if s.body not in body_names:
                 raise ValueError(f"source {s.name}: unknown body {s.body!r}; bodies: {body_names}")
             used.append((s.name, s.input))
+        if not isinstance(self.input_units, Mapping):
+            raise TypeError(
+                f"Chain.input_units = {self.input_units!r}: must be a mapping input name -> unit"
+            )
         for iname, unit in self.input_units.items():
             if iname not in self.inputs:
                 raise ValueError(

@@ -883,7 +883,8 @@ CS_SIGN, CS_SAT, CS_LK, CS_RL, CS_LATCH, CS_TL, CS_VL, CS_HELD, CS_TR, CS_D0, CS
 LATCH_ARMED, LATCH_RAMP, LATCH_HELD, LATCH_REARMED = 0.0, 1.0, 2.0, 3.0
 #: controller blocks whose discrete state changes are listed as events, element index
 #: ``nf + nt + k`` for block k = the state ``cs[k]``: sign, saturation, lookup segment, rate
-#: limiter, latch (CS_SIGN .. CS_LATCH are 0 .. 4)
+#: limiter, latch (CS_SIGN .. CS_LATCH are 0 .. 4); ``nf + nt + N_CL_EVENT_BLOCKS`` names the
+#: controller as a whole (a Zeno stop on its guards)
 N_CL_EVENT_BLOCKS = 5
 N_CL_GUARDS = 8
 
@@ -1395,43 +1396,46 @@ D1, D3, D4, D5, D6, D7 = (
 
 
 @jit_inline
+def _dense_row(y0, y1, k0, k2, k3, k4, k5, k6, h):  # type: ignore[no-untyped-def]
+    """Coefficients ``(r1, r2, r3, r4)`` of the Dormand-Prince continuous extension (Hairer's
+    DOPRI5) of one component (or of any fixed linear combination of components) from its values
+    ``y0``, ``y1`` at the step's ends and its stage derivatives ``k0``, ``k2`` .. ``k6``; the
+    value at fraction ``th`` is :func:`_dense_value`."""
+    r2 = y1 - y0
+    r3 = h * k0 - r2
+    return r2, r3, r2 - h * k6 - r3, h * (D1 * k0 + D3 * k2 + D4 * k3 + D5 * k4 + D6 * k5 + D7 * k6)
+
+
+@jit_inline
+def _dense_value(r0, r1, r2, r3, r4, th):  # type: ignore[no-untyped-def]
+    """Continuous extension at fraction ``th`` of the step (``r0`` the value at its start)."""
+    th1 = 1.0 - th
+    return r0 + th * (r1 + th1 * (r2 + th * (r3 + th1 * r4)))
+
+
+@jit_inline
 def dense_coeffs(y, y1, Ks, h, rc):  # type: ignore[no-untyped-def]
-    """Coefficients of the Dormand-Prince continuous extension (Hairer's DOPRI5) into ``rc``."""
+    """Coefficients of the continuous extension of every component into ``rc``."""
     for i in range(y.shape[0]):
-        r2 = y1[i] - y[i]
-        r3 = h * Ks[0, i] - r2
         rc[0, i] = y[i]
-        rc[1, i] = r2
-        rc[2, i] = r3
-        rc[3, i] = r2 - h * Ks[6, i] - r3
-        rc[4, i] = h * (
-            D1 * Ks[0, i]
-            + D3 * Ks[2, i]
-            + D4 * Ks[3, i]
-            + D5 * Ks[4, i]
-            + D6 * Ks[5, i]
-            + D7 * Ks[6, i]
+        rc[1, i], rc[2, i], rc[3, i], rc[4, i] = _dense_row(
+            y[i], y1[i], Ks[0, i], Ks[2, i], Ks[3, i], Ks[4, i], Ks[5, i], Ks[6, i], h
         )
 
 
 @jit_inline
 def dense_eval(rc, th, out):  # type: ignore[no-untyped-def]
     """State at fraction ``th`` of the step from the continuous extension."""
-    th1 = 1.0 - th
     for i in range(out.shape[0]):
-        out[i] = rc[0, i] + th * (rc[1, i] + th1 * (rc[2, i] + th * (rc[3, i] + th1 * rc[4, i])))
+        out[i] = _dense_value(rc[0, i], rc[1, i], rc[2, i], rc[3, i], rc[4, i], th)
 
 
 @jit_inline
-def _lin(v, i, r, coupled):  # type: ignore[no-untyped-def]
-    """Relative speed ``v[i] - r v[i+1]`` (coupled) or ``v[i]`` of a state-like vector ``v``."""
-    return v[i] - r * v[i + 1] if coupled else v[i]
-
-
-@jit_inline
-def _lin_row(A, k, i, r, coupled):  # type: ignore[no-untyped-def]
-    """:func:`_lin` of row ``k`` of ``A`` (no view: the caller may run without NRT)."""
-    return A[k, i] - r * A[k, i + 1] if coupled else A[k, i]
+def _rel_row(D, f, A, k):  # type: ignore[no-untyped-def]
+    """:func:`rel_speed` of friction element ``f`` from row ``k`` of ``A`` (a stage derivative:
+    the relative acceleration), without making a view (the caller runs without NRT)."""
+    i = D.f_idx[f]
+    return A[k, i] - D.ratio[i] * A[k, i + 1] if D.f_kind[f] == 0 else A[k, i]
 
 
 #: sample points of the continuous extension in :func:`_slip_dip` (then golden-section refinement)
@@ -1454,28 +1458,22 @@ def _slip_dip(D, fm, y, y1, Ks, hh):  # type: ignore[no-untyped-def]
         m = fm[f]
         if (m != SLIP_POS and m != SLIP_NEG) or D.f_eps[f] > 0.0:
             continue
-        i = D.f_idx[f]
-        coupled = D.f_kind[f] == 0
-        r = D.ratio[i] if coupled else 0.0
         sg = 1.0 if m == SLIP_POS else -1.0
-        g0 = sg * _lin(y, i, r, coupled)
-        g1 = sg * _lin(y1, i, r, coupled)
+        g0 = sg * rel_speed(D, f, y)
+        g1 = sg * rel_speed(D, f, y1)
         if not (g0 > 0.0 and g1 > 0.0):
             continue
-        k0 = sg * _lin_row(Ks, 0, i, r, coupled)
-        k6 = sg * _lin_row(Ks, 6, i, r, coupled)
-        dk = sg * (
-            D1 * _lin_row(Ks, 0, i, r, coupled)
-            + D3 * _lin_row(Ks, 2, i, r, coupled)
-            + D4 * _lin_row(Ks, 3, i, r, coupled)
-            + D5 * _lin_row(Ks, 4, i, r, coupled)
-            + D6 * _lin_row(Ks, 5, i, r, coupled)
-            + D7 * _lin_row(Ks, 6, i, r, coupled)
+        c1, c2, c3, c4 = _dense_row(
+            g0,
+            g1,
+            sg * _rel_row(D, f, Ks, 0),
+            sg * _rel_row(D, f, Ks, 2),
+            sg * _rel_row(D, f, Ks, 3),
+            sg * _rel_row(D, f, Ks, 4),
+            sg * _rel_row(D, f, Ks, 5),
+            sg * _rel_row(D, f, Ks, 6),
+            hh,
         )
-        c1 = g1 - g0
-        c2 = hh * k0 - c1
-        c3 = c1 - hh * k6 - c2
-        c4 = hh * dk
         # g(th) = g0 + th c1 + th(1-th) c2 + th^2(1-th) c3 + th^2(1-th)^2 c4 >= min(g0, g1)
         # - |c2|/4 - 4|c3|/27 - |c4|/16 on [0, 1]
         if min(g0, g1) > 0.25 * abs(c2) + (4.0 / 27.0) * abs(c3) + 0.0625 * abs(c4):
@@ -1483,27 +1481,22 @@ def _slip_dip(D, fm, y, y1, Ks, hh):  # type: ignore[no-untyped-def]
         k_min = 0
         g_min = np.inf
         for k in range(1, DIP_SAMPLES):
-            th = k / DIP_SAMPLES
-            t1 = 1.0 - th
-            g = g0 + th * (c1 + t1 * (c2 + th * (c3 + t1 * c4)))
+            g = _dense_value(g0, c1, c2, c3, c4, k / DIP_SAMPLES)
             if g < g_min:
                 g_min = g
                 k_min = k
+        # golden section on the two sample intervals around the smallest sample
         a = (k_min - 1) / DIP_SAMPLES
         b = (k_min + 1) / DIP_SAMPLES
         for _it in range(30):
-            # golden section on [a, b]
             p = b - 0.6180339887498949 * (b - a)
             q = a + 0.6180339887498949 * (b - a)
-            gp = g0 + p * (c1 + (1.0 - p) * (c2 + p * (c3 + (1.0 - p) * c4)))
-            gq = g0 + q * (c1 + (1.0 - q) * (c2 + q * (c3 + (1.0 - q) * c4)))
-            if gp < gq:
+            if _dense_value(g0, c1, c2, c3, c4, p) < _dense_value(g0, c1, c2, c3, c4, q):
                 b = q
             else:
                 a = p
         th = 0.5 * (a + b)
-        t1 = 1.0 - th
-        g = g0 + th * (c1 + t1 * (c2 + th * (c3 + t1 * c4)))
+        g = _dense_value(g0, c1, c2, c3, c4, th)
         if g_min < g:
             th = k_min / DIP_SAMPLES
             g = g_min
@@ -2709,7 +2702,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                     zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
                     if hit:
                         status = ZENO
-                        status_el = nf + nt
+                        status_el = nf + nt + N_CL_EVENT_BLOCKS  # the controller as a whole
                 if status != OK:
                     break
             if n_ev >= max_events:

@@ -321,14 +321,24 @@ def _smoothed(model: Model, smoothing: float | None) -> K.ChainData:
 
 
 #: the controller blocks listed in the event list (kernel element ``nf + nt + k``, see
-#: ``kernels.N_CL_EVENT_BLOCKS``): element name and the names of its state codes
+#: ``kernels.N_CL_EVENT_BLOCKS``; ``nf + nt + N_CL_EVENT_BLOCKS`` is the controller as a whole):
+#: element name and the names of its state codes (``cl_update`` in the kernel)
 CONTROLLER_BLOCKS: tuple[tuple[str, dict[int, str] | None], ...] = (
     ("controller.sign", {-1: "-", 0: "unset", 1: "+"}),
     ("controller.saturation", {0: "low", 1: "linear", 2: "high"}),
     ("controller.lookup", None),  # "segment k"
     ("controller.rate_limit", {0: "falling", 1: "tracking", 2: "rising"}),
-    ("controller.latch", {0: "armed", 1: "ramp", 2: "held", 3: "rearmed"}),
+    (
+        "controller.latch",
+        {
+            int(K.LATCH_ARMED): "armed",
+            int(K.LATCH_RAMP): "ramp",
+            int(K.LATCH_HELD): "held",
+            int(K.LATCH_REARMED): "rearmed",
+        },
+    ),
 )
+assert len(CONTROLLER_BLOCKS) == K.N_CL_EVENT_BLOCKS
 
 
 def _element_mode_name(model: Model, el: int, code: int) -> tuple[str, str]:
@@ -507,11 +517,7 @@ def simulate(
         smoothing=opts.smoothing,
     )
     if stat == "zeno" and raise_on_zeno:
-        el = int(status_el)
-        nft = len(model.frictions) + len(model.tables)
-        name = (
-            "controller" if el >= nft else _element_mode_name(model, el, 0)[0] if el >= 0 else "?"
-        )
+        name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
         raise ZenoError(
             f"events accumulate (Zeno) at t = {float(t_last):.9g} s on element {name!r}: "
             f"{opts.zeno_count} events within {opts.zeno_window:g} s"

@@ -264,6 +264,8 @@ def test_input_units_are_checked_and_reach_the_model_and_dataframe() -> None:
         Chain(bodies, cps, inputs=("T", "cap"), input_units={"torque": "N m"})
     with pytest.raises(TypeError, match=r"input_units\['T'\] = 3: must be a str"):
         Chain(bodies, cps, inputs=("T", "cap"), input_units={"T": 3})  # type: ignore[dict-item]
+    with pytest.raises(TypeError, match=r"Chain.input_units = \['N m'\]: must be a mapping"):
+        Chain(bodies, cps, inputs=("T", "cap"), input_units=["N m"])  # type: ignore[arg-type]
     m = Model(Chain(bodies, cps, inputs=("T", "cap"), input_units={"T": "N m"}))
     assert m.input_units == ("N m", "")
     df = simulate(m, [1.0, 0.0], {"T": 2.0, "cap": 5.0}, t_end=0.1).to_dataframe()
