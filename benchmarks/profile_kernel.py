@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/profile_kernel.py [--repeats N] [--keep DIR]
+    python benchmarks/profile_kernel.py [--repeats N] [--keep DIR] [--out DIR]
 
 Numba's compiled code has no symbols a sampling profiler could use, so this script copies the
 package into a temporary directory, inserts reads of the CPU's cycle counter
@@ -13,7 +13,9 @@ the event location, compiles that copy (a few minutes: its own numba cache, the 
 is not touched) and runs the full-model ``engage-ramp`` and ``tip-in`` in a subprocess. For each
 scenario it prints the share of the kernel's time-stamp-counter ticks (cycles at a constant rate)
 per part (the repeat with the fewest ticks) and the ticks per step, event location and mode
-decision.
+decision, and writes them to ``profile_kernel.json`` (``--out``, default ``benchmarks/results/``),
+with that repeat's kernel wall time (``kernel_wall_s``: seconds per tick) and the median wall
+time of the whole ``simulate()`` call (its Python part is the difference).
 
 The patch is a set of exact text replacements in ``kernels.py``; if one does not apply (the
 kernel changed), the script stops and names it.
@@ -22,6 +24,7 @@ kernel changed), the script stops and names it.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -30,7 +33,11 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
+
+from results_io import write_json  # noqa: E402
 
 _INTRINSIC = """from numba.typed import Dict
 from numba.extending import intrinsic as _intrinsic
@@ -164,7 +171,9 @@ K.simulate_kernel = _wrapped
 _RUNNER = (
     WRAP_KERNEL
     + r"""
+import json
 import sys
+import time
 import numpy as np
 from drivetrain_ctrl import simulate as SM
 from drivetrain_ctrl.params import default_params
@@ -174,13 +183,19 @@ repeats = int(sys.argv[1])
 p = default_params()
 labels = ["step loop (_advance)", "event location (_locate)", "mode decisions (_redecide)",
           "derivative after an event or stop", "tight stability bound (new mode)"]
+keys = ["step_loop", "event_location", "mode_decisions", "derivative_after_event_or_stop",
+        "tight_stability_bound"]
+summary = {}
 for name in ("engage-ramp", "tip-in"):
     sc = builtin_scenarios(p)[name]
     dt = sc.drivetrain(p, kind="full")
     x0 = sc.initial_state(dt)
     best = None
+    walls = []
     for _ in range(repeats):
+        tic = time.perf_counter()
         res = SM.simulate(dt.model, x0, sc.input_signals(), t_end=sc.t_end)
+        walls.append(time.perf_counter() - tic)
         pr = captured["extra"].copy()
         if best is None or pr[5] < best[0][5]:
             best = (pr, res.stats)
@@ -196,6 +211,23 @@ for name in ("engage-ramp", "tip-in"):
           f"{pr[0] / (st['steps'] + st['rejected']):.0f} ticks; per event location "
           f"{pr[1] / max(n_loc, 1):.0f} ticks ({n_it / max(n_loc, 1):.1f} Illinois iterations); "
           f"per mode decision {pr[2] / max(n_dec, 1):.0f} ticks")
+    summary[name] = {
+        "kernel_ticks": float(tot),
+        "kernel_wall_s": float(st["wall_time_s"]),
+        "share": {k: float(pr[i] / tot) for i, k in enumerate(keys)}
+        | {"rest": float((tot - pr[:5].sum()) / tot)},
+        "steps": int(st["steps"]),
+        "rejected": int(st["rejected"]),
+        "events": len(res.events),
+        "event_locations": int(n_loc),
+        "mode_decisions": int(n_dec),
+        "illinois_iterations_per_location": float(n_it / max(n_loc, 1)),
+        "ticks_per_step": float(pr[0] / (st["steps"] + st["rejected"])),
+        "ticks_per_location": float(pr[1] / max(n_loc, 1)),
+        "ticks_per_decision": float(pr[2] / max(n_dec, 1)),
+        "simulate_wall_s_median": float(np.median(walls)),
+    }
+print("JSON " + json.dumps(summary))
 """
 )
 
@@ -233,6 +265,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--repeats", type=int, default=15, help="runs per scenario (the fastest counts)"
     )
     ap.add_argument("--keep", type=Path, default=None, help="build the copy here and keep it")
+    ap.add_argument("--out", type=Path, default=HERE / "results", help="where the JSON goes")
     a = ap.parse_args(argv)
     if a.repeats < 1:
         ap.error(f"--repeats = {a.repeats}: must be >= 1")
@@ -252,9 +285,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         env = dict(os.environ, PYTHONPATH=str(dest))
         r = subprocess.run(
-            [sys.executable, "-c", _RUNNER, str(a.repeats)], env=env, cwd=dest, check=False
+            [sys.executable, "-c", _RUNNER, str(a.repeats)],
+            env=env,
+            cwd=dest,
+            check=False,
+            stdout=subprocess.PIPE,
+            text=True,
         )
-        return r.returncode
+        summary = None
+        for line in r.stdout.splitlines():
+            if line.startswith("JSON "):
+                summary = json.loads(line[5:])
+            else:
+                print(line)
+        if r.returncode != 0 or summary is None:
+            return r.returncode or 1
+        write_json(a.out, "profile_kernel.json", {"repeats": a.repeats, "scenarios": summary})
+        return 0
     finally:
         if tmp is not None:
             tmp.cleanup()
