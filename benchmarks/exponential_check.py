@@ -215,6 +215,17 @@ def linear_part(model: Any, mode: Mode, x: np.ndarray, u: np.ndarray) -> np.ndar
     return np.asarray(K.jacobians(model.data, x, u, fm, reg, P, True)[0])
 
 
+def visited_modes(res: Any) -> list[tuple[Mode, int]]:
+    """The distinct modes (friction modes and table segments) a run's samples hold, each with the
+    index of its first sample."""
+    keys = np.concatenate([np.asarray(res.fm), np.asarray(res.reg)], axis=1)
+    _uniq, first = np.unique(keys, axis=0, return_index=True)
+    return [
+        (Mode(tuple(int(v) for v in res.fm[i]), tuple(int(v) for v in res.reg[i])), int(i))
+        for i in first
+    ]
+
+
 def gauss_dissipation(
     model: Any, mode: Mode, u: np.ndarray, A: np.ndarray, x0: np.ndarray, T: float, m: int
 ) -> np.ndarray:
@@ -276,13 +287,11 @@ def check_scenario(name: str, repeats: int) -> dict[str, Any]:
     out: dict[str, Any] = {"nx": model.nx, "steps_ours": int(res.stats["steps"])}
 
     # distinct modes, and the set-up cost of each one's matrix functions
-    keys = np.concatenate([np.asarray(res.fm), np.asarray(res.reg)], axis=1)
-    uniq, first = np.unique(keys, axis=0, return_index=True)
-    out["distinct_modes"] = int(uniq.shape[0])
+    visited = visited_modes(res)
+    out["distinct_modes"] = len(visited)
     A_list = []
     lin_keys = set()
-    for i in first:
-        mode = Mode(tuple(int(v) for v in res.fm[i]), tuple(int(v) for v in res.reg[i]))
+    for mode, i in visited:
         A_list.append(model.jacobian(np.asarray(res.x[i]), np.asarray(res.u[i]), mode)[0])
         lin_keys.add(linear_part(model, mode, np.asarray(res.x[i]), np.asarray(res.u[i])).tobytes())
     # modes that differ only in what the linear part leaves out (capacity-table pieces, slip

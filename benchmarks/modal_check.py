@@ -52,10 +52,10 @@ from exponential_check import (  # noqa: E402
     linear_part,
     phi_blocks,
     phi_blocks_fast,
+    visited_modes,
 )
 from results_io import write_json  # noqa: E402
 
-from drivetrain_ctrl.model import Mode  # noqa: E402
 from drivetrain_ctrl.simulate import SimulationOptions, simulate  # noqa: E402
 
 #: below this |lambda h| the phi functions are summed as Taylor series (no cancellation)
@@ -202,15 +202,13 @@ def check_scenario(name: str, repeats: int) -> dict[str, Any]:
     setup = scenario_setup(name)
     model = setup.dt.model
     res = simulate(model, setup.x0, setup.inputs, t_end=setup.sc.t_end, options=SimulationOptions())
-    keys = np.concatenate([np.asarray(res.fm), np.asarray(res.reg)], axis=1)
-    _uniq, first = np.unique(keys, axis=0, return_index=True)
+    visited = visited_modes(res)
     parts: dict[bytes, np.ndarray] = {}
-    for i in first:
-        mode = Mode(tuple(int(v) for v in res.fm[i]), tuple(int(v) for v in res.reg[i]))
+    for mode, i in visited:
         A = linear_part(model, mode, np.asarray(res.x[i]), np.asarray(res.u[i]))
         parts.setdefault(A.tobytes(), A)
     A_list = list(parts.values())
-    out: dict[str, Any] = {"nx": model.nx, "distinct_modes": int(first.size)}
+    out: dict[str, Any] = {"nx": model.nx, "distinct_modes": len(visited)}
     out["distinct_linear_parts"] = len(A_list)
 
     # safety: conditioning, and agreement with scipy's expm of the augmented matrix

@@ -3,22 +3,11 @@ functions are known: a study that quotes a deviation from scipy must compute wha
 
 from __future__ import annotations
 
-import importlib
-import sys
-from pathlib import Path
+from collections.abc import Callable
 from types import ModuleType
 
 import numpy as np
 from scipy.linalg import expm
-
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _bench(name: str) -> ModuleType:
-    path = str(ROOT / "benchmarks")
-    if path not in sys.path:
-        sys.path.insert(0, path)
-    return importlib.import_module(name)
 
 
 def _phi_blocks_scipy(A: np.ndarray, h: float) -> np.ndarray:
@@ -33,8 +22,10 @@ def _phi_blocks_scipy(A: np.ndarray, h: float) -> np.ndarray:
     return np.hstack([E[:, :n], E[:, n : 2 * n], E[:, 2 * n :] / h])
 
 
-def test_split_setup_handles_a_defective_zero_eigenvalue() -> None:
-    mc = _bench("modal_check")
+def test_split_setup_handles_a_defective_zero_eigenvalue(
+    bench: Callable[[str], ModuleType],
+) -> None:
+    mc = bench("modal_check")
     # a free body with a position state (Jordan block at 0), a lightly damped stiff mode, a slow
     # real mode and a lag: eigenvectors of the plain decomposition are singular
     A = np.zeros((6, 6))
