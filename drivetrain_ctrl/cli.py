@@ -39,6 +39,7 @@ from typing import Any
 
 from .loading import is_finite_real
 from .params import (
+    DEFAULT_SET,
     DrivetrainParams,
     Table,
     available_parameter_sets,
@@ -52,7 +53,7 @@ __all__ = ["main", "run_simulation"]
 
 PROG = "drivetrain-ctrl"
 MODELS = ("full", "reduced")
-DEFAULT_PARAMS = "passenger-car"
+DEFAULT_PARAMS = DEFAULT_SET
 
 
 def _controller_names(sep: str) -> str:

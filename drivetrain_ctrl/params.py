@@ -1056,10 +1056,16 @@ def available_parameter_sets() -> list[str]:
     return sorted(p.stem for p in PARAMETER_SETS_DIR.glob("*.toml"))
 
 
+#: the built-in set that ``"default"`` names (and :func:`default_params` loads)
+DEFAULT_SET = "passenger-car"
+
+
 def _resolve_source(source: str | Path) -> Path:
     if isinstance(source, Path):
         return source
     sets = available_parameter_sets()
+    if source == "default" and not (PARAMETER_SETS_DIR / "default.toml").is_file():
+        source = DEFAULT_SET
     if source in sets:
         return PARAMETER_SETS_DIR / f"{source}.toml"
     looks_like_path = source.endswith(".toml") or "/" in source or "\\" in source
@@ -1067,13 +1073,14 @@ def _resolve_source(source: str | Path) -> Path:
         return Path(source)
     raise ValueError(
         f"unknown parameter set {source!r}{_suggest(source, sets)} "
-        f"(available: {', '.join(sets) or 'none'}; or give a path to a .toml file)"
+        f"(available: {', '.join(sets) or 'none'}, 'default' = {DEFAULT_SET!r}; or give a path "
+        "to a .toml file)"
     )
 
 
 def load_params(source: str | Path) -> DrivetrainParams:
-    """Load and validate a parameter set: a built-in set name (e.g. ``"passenger-car"``) or a path
-    to a TOML file. All values are SI (see :func:`field_info` for units and frames).
+    """Load and validate a parameter set: a built-in set name (e.g. ``"passenger-car"``; ``"default"``
+    is the built-in default set, :data:`DEFAULT_SET`) or a path to a TOML file. All values are SI (see :func:`field_info` for units and frames).
 
     Raises :class:`ParameterError` for invalid, unknown or missing parameters (message suffixed with
     the file), :class:`ValueError` for an unknown set name and :class:`FileNotFoundError` for a
@@ -1101,5 +1108,5 @@ def save_params(params: DrivetrainParams, path: str | Path) -> Path:
 
 @functools.lru_cache(maxsize=1)
 def default_params() -> DrivetrainParams:
-    """The built-in ``"passenger-car"`` set (cached; the object is immutable)."""
-    return load_params("passenger-car")
+    """The built-in default set, :data:`DEFAULT_SET` (cached; the object is immutable)."""
+    return load_params(DEFAULT_SET)

@@ -119,6 +119,14 @@ def test_unknown_params_set_and_missing_file_exit_2(
     assert "none.toml" in capsys.readouterr().err
 
 
+def test_params_default_alias(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["params", "show", "default"]) == 0
+    by_alias = capsys.readouterr().out
+    assert main(["params", "show", "passenger-car"]) == 0
+    assert capsys.readouterr().out == by_alias
+    assert "engine.J1" in by_alias
+
+
 def test_usage_errors_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["simulate", "--scenario", "tip-in", "--model", "tiny", "--out", "x"]) == 2
     assert "tiny" in capsys.readouterr().err

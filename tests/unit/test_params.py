@@ -14,6 +14,7 @@ import pytest
 import tomli_w
 
 from drivetrain_ctrl.params import (
+    DEFAULT_SET,
     FRAMES,
     DrivetrainParams,
     ParameterError,
@@ -317,6 +318,17 @@ def test_unknown_set_name_lists_available() -> None:
         load_params("passenger-cra")
     assert not isinstance(exc.value, ParameterError)
     assert "did you mean 'passenger-car'" in str(exc.value)
+
+
+def test_default_names_the_default_set() -> None:
+    # "default" is an alias of DEFAULT_SET (the set default_params() loads), not a set of its own
+    assert "default" not in available_parameter_sets()
+    assert DEFAULT_SET in available_parameter_sets()
+    p = load_params("default")
+    assert p == load_params(DEFAULT_SET) == default_params()
+    assert p.name == DEFAULT_SET
+    with pytest.raises(ValueError, match=r"'default' = 'passenger-car'"):
+        load_params("defualt")
 
 
 def test_missing_file_raises(tmp_path: Path) -> None:
