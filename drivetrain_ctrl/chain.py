@@ -44,6 +44,10 @@ FRICTION_MODES: tuple[str, str, str, str] = ("stuck", "slip+", "slip-", "open")
 BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
 
 
+def _is_number(value: object) -> bool:
+    return not isinstance(value, bool) and isinstance(value, (int, float))
+
+
 def _finite(
     owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False
 ) -> None:
@@ -263,7 +267,9 @@ class Chain:
 
     ``input_units``: optional unit of each input (e.g. ``{"pedal": "m"}``), shown in the column
     names of results; an input without one gets no unit (its unit depends on the gain or scale
-    it drives)."""
+    it drives). ``input_ranges``: optional physical range ``(lo, hi)`` of each input (in its
+    unit; e.g. ``{"throttle": (0.0, 1.0)}``): the simulator rejects an input signal that leaves
+    it; an input without one is unbounded."""
 
     bodies: tuple[Body, ...]
     couplings: tuple[Coupling, ...]
@@ -272,6 +278,9 @@ class Chain:
     name: str = "chain"
     element_names: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
     input_units: dict[str, str] = field(default_factory=dict, compare=False, hash=False)
+    input_ranges: dict[str, tuple[float, float]] = field(
+        default_factory=dict, compare=False, hash=False
+    )
 
     def __post_init__(self) -> None:
         if len(self.bodies) < 1:
@@ -308,6 +317,22 @@ class Chain:
                 )
             if not isinstance(unit, str):
                 raise TypeError(f"Chain.input_units[{iname!r}] = {unit!r}: must be a str")
+        if not isinstance(self.input_ranges, Mapping):
+            raise TypeError(
+                f"Chain.input_ranges = {self.input_ranges!r}: must be a mapping input name -> "
+                "(lo, hi)"
+            )
+        for iname, rng in self.input_ranges.items():
+            if iname not in self.inputs:
+                raise ValueError(
+                    f"Chain.input_ranges: {iname!r} is not declared in Chain.inputs {self.inputs}"
+                )
+            ok = isinstance(rng, (tuple, list)) and len(rng) == 2
+            ok = ok and all(_is_number(v) and not math.isnan(float(v)) for v in rng)
+            if not ok or not float(rng[0]) < float(rng[1]):
+                raise ValueError(
+                    f"Chain.input_ranges[{iname!r}] = {rng!r}: must be (lo, hi) with lo < hi"
+                )
         for owner, inp in used:
             if inp is not None and inp not in self.inputs:
                 raise ValueError(

@@ -127,9 +127,10 @@ def run_simulation(
     for invalid options and :class:`RunError` if the simulation fails.
     """
     from .metrics import engagement_metrics, json_ready
-    from .simulate import SimulationOptions, ZenoError
+    from .simulate import InputRangeError, SimulationOptions, ZenoError
 
     tic = time.perf_counter()
+    _check_out_dir(out)
     try:
         opts = SimulationOptions() if rtol is None else SimulationOptions(rtol=rtol)
     except ValueError as exc:
@@ -138,9 +139,15 @@ def run_simulation(
     if not (is_finite_real(t_stop) and t_stop > 0):
         raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
     if scenario.start_time > t_stop:
+        what = (
+            f"--t-end = {t_stop!r}: the run would end"
+            if t_end is not None
+            else f"scenario {scenario.name!r}: t_end = {t_stop!r} s ends"
+        )
+        cmd = "controller.start_s" if scenario.control_start is not None else "the first pedal knot"
         raise InputError(
-            f"--t-end = {t_stop!r}: the run would end before the start command of scenario "
-            f"{scenario.name!r} at {scenario.start_time:g} s (the metrics measure from there)"
+            f"{what} before the start command of scenario {scenario.name!r} at "
+            f"{scenario.start_time:g} s ({cmd}; the metrics measure from there)"
         )
     try:
         dt: Any = scenario.drivetrain(params, kind=kind)  # Any: Drivetrain's slots are untyped
@@ -176,7 +183,7 @@ def run_simulation(
             scenario.run(dt, controller=ctrl, options=opts, t_end=min(float(t_stop), 1e-3))
         load_s = time.perf_counter() - tic_load
         res = scenario.run(dt, controller=ctrl, options=opts, t_end=float(t_stop))
-    except (ControllerError, ScenarioError) as exc:  # e.g. x_r0 or pedal0 outside the stroke
+    except (ControllerError, ScenarioError, InputRangeError) as exc:  # e.g. outside the stroke
         raise InputError(f"scenario {scenario.name!r}: {exc}") from None
     except (ZenoError, RuntimeError) as exc:
         raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
@@ -216,6 +223,27 @@ def run_simulation(
     except OSError as exc:
         raise RunError(f"cannot write outputs to {out}: {exc}") from None
     return {"metrics": record, "timing": timing, "files": files}
+
+
+#: the files ``run_simulation`` writes (with plots)
+SIMULATION_FILES: tuple[str, ...] = (
+    "trajectory.csv",
+    "events.csv",
+    "metrics.json",
+    "timing.json",
+    "overview.png",
+    "energy.png",
+)
+
+
+def _check_out_dir(out: Path) -> None:
+    """Raise :class:`InputError` before any work if ``out`` cannot be the output directory."""
+    for p in (out, *out.parents):
+        if p.exists():
+            if not p.is_dir():
+                what = f"--out {out}" if p == out else f"--out {out}: {p}"
+                raise InputError(f"{what} is an existing file, not a directory")
+            break
 
 
 def _fmt(v: Any, spec: str = ".4g") -> str:
@@ -263,6 +291,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     params = _load_params(args.params)
     scenario = _load_scenario(args.scenario, params)
     out = Path(args.out)
+    replaced = [f for f in SIMULATION_FILES if (out / f).is_file()]
     r = run_simulation(
         scenario,
         params,
@@ -274,6 +303,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     )
     print(_summary_line(r["metrics"], r["timing"]))
     print(f"  outputs: {out}/ ({', '.join(r['files'])})")
+    if replaced:
+        print(f"  replaced the earlier {', '.join(replaced)} in {out}/", file=sys.stderr)
     return 0
 
 
@@ -368,6 +399,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     params = _load_params(args.params)
     out = Path(args.out)
+    _check_out_dir(out)
     kinds = ("reduced",) if args.quick else MODELS
     jobs = [
         (s, k, c)
@@ -414,6 +446,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_report(args: argparse.Namespace) -> int:
     from .report import build_report
 
+    _check_out_dir(Path(args.out))
     params = _load_params(args.params)
     try:
         rep = build_report(
@@ -520,6 +553,12 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _out_dir(text: str) -> str:
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: give an output directory")
+    return text
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drivetrain-ctrl``."""
     ap = argparse.ArgumentParser(
@@ -536,7 +575,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=DEFAULT_PARAMS,
         help=f"parameter set name or .toml file (default: {DEFAULT_PARAMS})",
     )
-    sp.add_argument("--out", required=True, help="output directory (created if needed)")
+    sp.add_argument(
+        "--out", required=True, type=_out_dir, help="output directory (created if needed)"
+    )
     sp.add_argument("--rtol", type=_positive_float, default=None, help="relative tolerance")
     sp.add_argument(
         "--t-end", type=_positive_float, default=None, help="end time [s] (default: scenario's)"
@@ -562,11 +603,13 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument(
         "--scenario", default="paper-start", help="closed-loop scenario (default: paper-start)"
     )
-    rp.add_argument("--out", required=True, help="output directory (created if needed)")
+    rp.add_argument(
+        "--out", required=True, type=_out_dir, help="output directory (created if needed)"
+    )
     rp.set_defaults(func=_cmd_report)
 
     dp = sub.add_parser("demo", help="run the built-in scenarios on both models; summary.md")
-    dp.add_argument("--out", required=True, help="output directory")
+    dp.add_argument("--out", required=True, type=_out_dir, help="output directory")
     dp.add_argument("--quick", action="store_true", help="reduced model only (a few seconds)")
     dp.add_argument("--params", default=DEFAULT_PARAMS, help="parameter set name or .toml file")
     dp.set_defaults(func=_cmd_demo)

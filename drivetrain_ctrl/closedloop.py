@@ -88,6 +88,10 @@ class LatchRamp:
             raise ValueError(f"LatchRamp.rate = {self.rate!r} [unit/s]: must be > 0")
 
 
+#: largest transport delay [samples] (a buffer of this many values is kept in the loop)
+MAX_DELAY_SAMPLES = 100_000
+
+
 @dataclass(frozen=True, kw_only=True)
 class Controller:
     """A controller: LTI block plus listed nonlinear blocks (see the module docstring)."""
@@ -121,15 +125,49 @@ class Controller:
             )
         if not self.measurement:
             raise ValueError(f"{self.name}.measurement: needs at least one (coef, source) term")
-        if self.delay_samples < 0 or (self.delay_samples and not self.is_discrete):
+        ds = self.delay_samples
+        if isinstance(ds, bool) or not isinstance(ds, (int, np.integer)):
             raise ValueError(
-                f"{self.name}.delay_samples = {self.delay_samples}: needs a discrete lti and >= 0"
+                f"{self.name}.delay_samples = {ds!r}: must be a whole number of samples"
             )
+        if ds < 0 or (ds and not self.is_discrete) or ds > MAX_DELAY_SAMPLES:
+            raise ValueError(
+                f"{self.name}.delay_samples = {ds}: needs a discrete lti and 0 <= delay_samples "
+                f"<= {MAX_DELAY_SAMPLES}"
+            )
+        if not is_finite_real(self.offset):
+            raise ValueError(f"{self.name}.offset = {self.offset!r}: must be a finite number")
+        for nm in ("saturation", "rate_limit"):
+            pair = getattr(self, nm)
+            if pair is not None and not (
+                isinstance(pair, (tuple, list))
+                and len(pair) == 2
+                and all(is_finite_real(v) for v in pair)
+            ):
+                raise ValueError(
+                    f"{self.name}.{nm} = {pair!r}: must be a pair of finite numbers or None"
+                )
         if self.saturation is not None and not self.saturation[0] < self.saturation[1]:
             raise ValueError(f"{self.name}.saturation = {self.saturation}: needs lo < hi")
         if self.rate_limit is not None and not (self.rate_limit[0] > 0 and self.rate_limit[1] > 0):
             raise ValueError(
                 f"{self.name}.rate_limit = {self.rate_limit}: rate and gain must be > 0"
+            )
+        x0 = self.initial_lti_state
+        if x0 is not None:
+            n_lti = int(sys.nstates)
+            if (
+                not isinstance(x0, (tuple, list))
+                or len(x0) != n_lti
+                or not all(is_finite_real(v) for v in x0)
+            ):
+                raise ValueError(
+                    f"{self.name}.initial_lti_state = {x0!r}: must be {n_lti} finite numbers "
+                    "(one per state of lti) or None"
+                )
+        if self.reference is not None and not isinstance(self.reference, Signal):
+            raise ValueError(
+                f"{self.name}.reference = {self.reference!r}: must be a Signal or None"
             )
         if self.start_time is not None and not is_finite_real(self.start_time):
             raise ValueError(

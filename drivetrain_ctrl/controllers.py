@@ -226,6 +226,16 @@ class ControllerSpec:
         ``x_r0`` must lie within the actuator stroke ``[actuator.x_min, actuator.x_max]`` of
         ``params`` (else :class:`ControllerError`).
         """
+        if not isinstance(reference, Signal):
+            raise ControllerError(
+                f"controller {self.name!r}: reference = {reference!r}: must be a Signal "
+                "(omega_r(t) [rad/s], e.g. signals.constant(167.6))"
+            )
+        if start_time is not None and not is_finite_real(start_time):
+            raise ControllerError(
+                f"controller {self.name!r}: start_time = {start_time!r}: must be a finite "
+                "number [s] or None"
+            )
         lw, act = params.law6, params.actuator
         x_r0 = lw.x_r0 if self.x_r0 is None else self.x_r0
         msg = act.outside_stroke("x_r0", x_r0)

@@ -61,6 +61,7 @@ __all__ = [
     "Drivetrain",
     "INPUTS",
     "full_chain",
+    "input_ranges",
     "reduced_chain",
     "full_model",
     "reduced_model",
@@ -147,6 +148,17 @@ def _vehicle(p: DrivetrainParams, slope: float) -> Body:
     )
 
 
+def input_ranges(p: DrivetrainParams) -> dict[str, tuple[float, float]]:
+    """Physical range of each input: throttle theta in [0, 1] [-], pedal (actuator position
+    x_c) within the stroke ``[actuator.x_min, actuator.x_max]`` [m], brake capacity in
+    ``[0, brake.capacity_max]`` [N m at the wheels]."""
+    return {
+        "throttle": (0.0, 1.0),
+        "pedal": (p.actuator.x_min, p.actuator.x_max),
+        "brake": (0.0, p.brake.capacity_max),
+    }
+
+
 def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Chain:
     """The full drivetrain of Section II as a :class:`Chain` (slope [rad], positive uphill)."""
     _check_gear(p, gear)
@@ -218,6 +230,7 @@ def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Cha
         INPUTS,
         name=f"full drivetrain, gear {gear}",
         input_units=dict(INPUT_UNITS),
+        input_ranges=input_ranges(p),
     )
 
 
@@ -288,6 +301,7 @@ def reduced_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> 
         INPUTS,
         name=f"reduced drivetrain, gear {gear}",
         input_units=dict(INPUT_UNITS),
+        input_ranges=input_ranges(p),
     )
 
 

@@ -14,6 +14,7 @@ Jacobian, the stuck torques and the guards.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 
@@ -159,7 +160,8 @@ class Model:
 
     Attributes: ``chain``, ``data`` (:class:`~drivetrain_ctrl.kernels.ChainData`),
     ``state_names``, ``state_units``, ``input_names``, ``input_units`` (``""`` where the chain
-    gives none), ``frictions``, ``tables``.
+    gives none), ``input_ranges`` (``(lo, hi)`` per input, ``(-inf, inf)`` where the chain gives
+    none), ``frictions``, ``tables``.
     """
 
     __slots__ = (
@@ -169,6 +171,7 @@ class Model:
         "state_units",
         "input_names",
         "input_units",
+        "input_ranges",
         "frictions",
         "tables",
         "_frozen",
@@ -329,6 +332,12 @@ class Model:
         self.state_units = tuple(units)
         self.input_names = tuple(inputs)
         self.input_units = tuple(chain.input_units.get(n, "") for n in inputs)
+        self.input_ranges = tuple(
+            (float(r[0]), float(r[1]))
+            if (r := chain.input_ranges.get(n))
+            else (-math.inf, math.inf)
+            for n in inputs
+        )
         self.frictions = tuple(finfo)
         self.tables = tuple(infos)
         self._frozen = True

@@ -72,17 +72,61 @@ class Scenario:
     pedal0: float = 0.11
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise ScenarioError(f"name = {self.name!r}: must be a non-empty string")
+        if not isinstance(self.description, str):
+            raise ScenarioError(
+                f"{self.name}: description = {self.description!r}: must be a string"
+            )
+        if isinstance(self.gear, bool) or not isinstance(self.gear, (int, np.integer)):
+            raise ScenarioError(f"{self.name}: gear = {self.gear!r}: must be an integer")
+        for nm in ("slope", "omega_engine0", "v_vehicle0", "throttle0", "twist_torque0", "pedal0"):
+            v = getattr(self, nm)
+            if not is_finite_real(v):
+                raise ScenarioError(f"{self.name}: {nm} = {v!r}: must be a finite number")
+        if not isinstance(self.clutch_locked0, bool):
+            raise ScenarioError(
+                f"{self.name}: clutch_locked0 = {self.clutch_locked0!r}: must be True or False"
+            )
+        if not 0.0 <= self.throttle0 <= 1.0:
+            raise ScenarioError(
+                f"{self.name}: throttle0 = {self.throttle0!r}: the engine's throttle (lag) state "
+                "must lie in [0, 1]"
+            )
+        if self.omega_engine0 < 0.0:
+            raise ScenarioError(
+                f"{self.name}: omega_engine0 = {self.omega_engine0!r} [rad/s]: must be >= 0 (the "
+                "engine does not run backwards)"
+            )
+        if not isinstance(self.inputs, tuple) or not all(
+            isinstance(it, tuple)
+            and len(it) == 2
+            and isinstance(it[0], str)
+            and isinstance(it[1], Signal)
+            for it in self.inputs
+        ):
+            raise ScenarioError(
+                f"{self.name}: inputs = {self.inputs!r}: must be a tuple of (name, Signal) pairs"
+            )
+        if self.reference is not None and not isinstance(self.reference, Signal):
+            raise ScenarioError(
+                f"{self.name}: reference = {self.reference!r}: must be a Signal [rad/s] or None"
+            )
+        if self.control_start is not None and not is_finite_real(self.control_start):
+            raise ScenarioError(
+                f"{self.name}: control_start = {self.control_start!r}: must be a finite number "
+                "[s] or None"
+            )
         if not (is_finite_real(self.t_end) and self.t_end > 0):
             raise ScenarioError(
                 f"{self.name}: t_end = {self.t_end!r}: must be a finite number > 0 [s]"
             )
-        if not math.isfinite(self.slope) or abs(self.slope) >= math.pi / 2:
+        if abs(self.slope) >= math.pi / 2:
             raise ScenarioError(f"{self.name}: slope = {self.slope!r} rad out of range")
-        for nm in ("omega_engine0", "v_vehicle0", "throttle0", "twist_torque0"):
-            v = getattr(self, nm)
-            if not math.isfinite(v):
-                raise ScenarioError(f"{self.name}: {nm} = {v!r}: must be finite")
         names = [n for n, _ in self.inputs]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ScenarioError(f"{self.name}: input(s) {dup} given more than once")
         unknown = set(names) - set(INPUTS)
         if unknown:
             raise ScenarioError(
@@ -103,18 +147,26 @@ class Scenario:
                 )
             if self.reference is None:
                 raise ScenarioError(f"{self.name}: controller.start_s needs a reference_rpm")
+        if self.reference is not None:
+            (vmin, tmin), _ = self.reference.extremes(0.0, self.t_end)
+            if vmin < 0.0:
+                raise ScenarioError(
+                    f"{self.name}: controller.reference_rpm = {vmin * 30.0 / math.pi:.6g} rpm at "
+                    f"t = {tmin:g} s: an engine-speed reference must be >= 0"
+                )
         if not (math.isfinite(self.pedal0) and 0.0 <= self.pedal0 <= 0.5):
             raise ScenarioError(f"{self.name}: pedal0 = {self.pedal0!r} [m]: out of range [0, 0.5]")
 
     @property
     def start_time(self) -> float:
         """The start command [s]: the controller's start time; for an open-loop scenario the
-        first breakpoint of the pedal signal (start of the pedal release); else 0."""
+        first breakpoint of the pedal signal (start of the pedal release), or 0 (the run's start)
+        if that lies before; else 0."""
         if self.control_start is not None:
             return float(self.control_start)
         sig = dict(self.inputs).get("pedal")
         if sig is not None and sig.breakpoints:
-            return float(sig.breakpoints[0])
+            return max(0.0, float(sig.breakpoints[0]))
         return 0.0
 
     @property
@@ -178,14 +230,15 @@ class Scenario:
             )
         if controller is not None:
             self.check_pedal0(dt.params)
+        ctrl = self.make_controller(dt, controller)
         return simulate(
             dt.model,
             self.initial_state(dt),
             self.input_signals(),
             t_end=self.t_end if t_end is None else t_end,
             options=options,
-            controller=self.make_controller(dt, controller),
-            controller_initial=self.pedal0,
+            controller=ctrl,
+            controller_initial=self.pedal0 if ctrl is not None else 0.0,
         )
 
     def drivetrain(self, params: DrivetrainParams, *, kind: str = "full") -> Drivetrain:
@@ -294,6 +347,12 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
             pedal0 = _num("controller.", ctl, "pedal0")
         if "start_s" in ctl:
             start = _num("controller.", ctl, "start_s")
+    if reference is not None and "pedal" in inputs:
+        raise ScenarioError(
+            "inputs.pedal: the pedal is driven by the controller of this scenario "
+            "([controller] reference_rpm); remove [inputs.pedal] (the controller's initial "
+            "output is controller.pedal0)"
+        )
     sigs = []
     for n in INPUTS:
         if n == "pedal" and reference is not None:
@@ -448,7 +507,18 @@ def builtin_scenarios(params: DrivetrainParams | None = None) -> dict[str, Scena
 
 
 def load_scenario(source: str | Path, *, params: DrivetrainParams | None = None) -> Scenario:
-    """A built-in scenario by name (built for ``params``, default parameter set if None), or a
-    scenario TOML file."""
+    """A built-in scenario by name (built for ``params``: a parameter set, or its name or TOML
+    file; the default parameter set if None), or a scenario TOML file."""
+    if isinstance(source, bool) or not isinstance(source, (str, Path)):
+        raise ScenarioError(f"load_scenario: source = {source!r}: give a scenario name or a path")
+    if isinstance(params, (str, Path)):
+        from .params import load_params
+
+        params = load_params(params)
+    elif params is not None and not isinstance(params, DrivetrainParams):
+        raise ScenarioError(
+            f"load_scenario: params = {params!r}: give a DrivetrainParams, a parameter set name "
+            "or file, or None"
+        )
     b = builtin_scenarios(params)
     return load_builtin_or_toml(source, b, scenario_from_dict, what="scenario", error=ScenarioError)

@@ -24,7 +24,7 @@ Examples
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -87,6 +87,15 @@ class Signal:
     sines: tuple[Sine, ...] = ()
 
     def __post_init__(self) -> None:
+        for nm in ("times", "values", "sines"):
+            if not isinstance(getattr(self, nm), tuple):
+                raise TypeError(
+                    f"Signal.{nm} = {getattr(self, nm)!r}: must be a tuple (build signals with "
+                    "constant, step, ramp, table, sine)"
+                )
+        for i, sw in enumerate(self.sines):
+            if not isinstance(sw, Sine):
+                raise TypeError(f"Signal.sines[{i}] = {sw!r}: must be a Sine")
         if len(self.times) != len(self.values) or len(self.times) == 0:
             raise ValueError(
                 f"Signal: times and values must be non-empty and of equal length, got "
@@ -130,6 +139,35 @@ class Signal:
             v = _eval_pwl(ts, vs, t, ts[k])
         return v + float(sum(float(s(t)) for s in self.sines if t > s.t_start))
 
+    def extremes(self, t0: float, t1: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """``((v_min, t_min), (v_max, t_max))``: the smallest and largest value on ``[t0, t1]`` [s]
+        and where they occur. Exact for the piecewise-linear part (its extremes lie at ``t0``,
+        ``t1`` or a knot, both sides of a jump counted); with sines, on a grid of 40 points per
+        period of the fastest one (at most 200000 points) plus those times. Of equal values the
+        earliest time is given."""
+        ts, vs = np.asarray(self.times), np.asarray(self.values)
+        inside = (ts > t0) & (ts < t1)
+        cand_t = np.concatenate([[t0, t1, t1], ts[inside]])
+        cand_v = np.concatenate(
+            [
+                [_eval_pwl(ts, vs, t0, t0), self.left_limit_pwl(t1), _eval_pwl(ts, vs, t1, t1)],
+                vs[inside],
+            ]
+        )
+        if self.sines:
+            w = max(abs(s.omega) for s in self.sines)
+            n = int(min(200_000, max(100.0, 40.0 * (t1 - t0) * w / (2.0 * math.pi))))
+            grid = np.linspace(t0, t1, n)
+            # np.interp takes one side of a jump: the candidates above carry both
+            cand_t = np.concatenate([cand_t, grid])
+            cand_v = np.concatenate([cand_v, np.interp(grid, ts, vs)])
+            for sw in self.sines:
+                cand_v = cand_v + sw(cand_t)
+        order = np.argsort(cand_t, kind="stable")  # the earliest time of a tie
+        tv, vv = cand_t[order], cand_v[order]
+        i_min, i_max = int(np.argmin(vv)), int(np.argmax(vv))
+        return (float(vv[i_min]), float(tv[i_min])), (float(vv[i_max]), float(tv[i_max]))
+
     @property
     def breakpoints(self) -> tuple[float, ...]:
         """Sorted unique times at which the signal or its slope may jump [s]."""
@@ -170,7 +208,7 @@ class Signal:
         return self * -1.0
 
     def __sub__(self, other: Signal | float) -> Signal:
-        return self + (-other if isinstance(other, Signal) else -float(other))
+        return self + (-other if isinstance(other, Signal) else -_check_finite("constant", other))
 
     def left_limit_pwl(self, t: float) -> float:
         """Left limit of the piecewise-linear part at ``t`` [s]."""
@@ -194,6 +232,11 @@ class Signal:
     @classmethod
     def from_dict(cls, d: dict[str, object], *, name: str = "signal") -> Signal:
         """Inverse of :meth:`to_dict`; unknown keys raise ``ValueError`` naming them."""
+        if not isinstance(d, Mapping):
+            raise ValueError(
+                f"{name} = {d!r}: must be a table with 'times' and 'values' (lists of numbers) "
+                "and optionally 'sines' (an array of tables)"
+            )
         allowed = {"times", "values", "sines"}
         unknown = set(d) - allowed
         if unknown:
@@ -201,7 +244,13 @@ class Signal:
         if "times" not in d or "values" not in d:
             raise ValueError(f"{name}: needs both 'times' and 'values'")
         sines = []
-        raw_sines: list[dict[str, object]] = list(d.get("sines", []))  # type: ignore[call-overload]
+        raw = d.get("sines", [])
+        if not isinstance(raw, (list, tuple)) or not all(isinstance(s, Mapping) for s in raw):
+            raise ValueError(
+                f"{name}.sines = {raw!r}: must be an array of tables, each with amplitude, omega "
+                f"and optionally phase, t_start (TOML: [[{name}.sines]])"
+            )
+        raw_sines: list[Mapping[str, object]] = list(raw)
         for i, s in enumerate(raw_sines):
             unknown = set(s) - {"amplitude", "omega", "phase", "t_start"}
             if unknown:
@@ -264,7 +313,13 @@ def ramp(t_start: float, t_end: float, v_start: float, v_end: float) -> Signal:
 
 def table(times: Sequence[float], values: Sequence[float]) -> Signal:
     """Piecewise-linear table; repeat a time to make a jump."""
-    return Signal(tuple(float(t) for t in times), tuple(float(v) for v in values))
+    for nm, seq in (("times", times), ("values", values)):
+        if isinstance(seq, (str, bytes)) or not isinstance(seq, Iterable):
+            raise TypeError(f"table: {nm} = {seq!r}: must be a sequence of numbers")
+    return Signal(
+        tuple(_check_finite(f"table: times[{i}]", t) for i, t in enumerate(times)),
+        tuple(_check_finite(f"table: values[{i}]", v) for i, v in enumerate(values)),
+    )
 
 
 def sine(amplitude: float, omega: float, *, phase: float = 0.0, t_start: float = 0.0) -> Signal:

@@ -33,13 +33,24 @@ from .signals import Signal, pack_signals
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
-__all__ = ["SimulationOptions", "SimulationResult", "Event", "ZenoError", "simulate"]
+__all__ = [
+    "SimulationOptions",
+    "SimulationResult",
+    "Event",
+    "ZenoError",
+    "InputRangeError",
+    "simulate",
+]
 
 F64 = NDArray[np.float64]
 
 
 class ZenoError(RuntimeError):
     """Events accumulate (Zeno behaviour): the run was stopped."""
+
+
+class InputRangeError(ValueError):
+    """An input signal leaves the model's physical range for that input (``Model.input_ranges``)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -55,7 +66,8 @@ class SimulationOptions:
     orders below the 1e-4 rad/s speed accuracy the benchmark checks; 1e-9 costs 18 % more steps on
     engage-ramp for the same accuracy, 1e-6 loses it (``ours_atol_*`` in
     ``benchmarks/results/simulate.json``). h_max [s]: largest step, so that no
-    stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s];
+    stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s]: first
+    step (at most h_max);
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
     zeno_window [s] stop the run (:class:`ZenoError`). smoothing [rad/s or m/s]: replace every
@@ -78,13 +90,15 @@ class SimulationOptions:
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "h_max", "h_init", "tol_w", "zeno_window"):
             v = getattr(self, name)
-            if (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float))
-                or not math.isfinite(v)
-                or v <= 0
-            ):
+            if not is_finite_real(v) or v <= 0:
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be a finite number > 0")
+            object.__setattr__(self, name, float(v))
+        if not self.rtol < 1e-2:
+            raise ValueError(
+                f"SimulationOptions.rtol = {self.rtol!r}: must be < 1e-2 (keep it <= 1e-7 on the "
+                "full drivetrain, see the class docstring)"
+            )
+
         if not isinstance(self.energy, bool):
             raise ValueError(f"SimulationOptions.energy = {self.energy!r}: must be True or False")
         if self.smoothing is not None and (
@@ -98,8 +112,9 @@ class SimulationOptions:
             )
         for name in ("zeno_count", "max_events", "max_steps"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 2:
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 2:
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be an integer >= 2")
+            object.__setattr__(self, name, int(v))
 
 
 class Event(NamedTuple):
@@ -375,6 +390,49 @@ def _events(model: Model, evt: F64, evel: NDArray[np.int64], evf: NDArray[np.int
     return tuple(out)
 
 
+def _check_input_ranges(
+    model: Model, sigs: list[Signal], t0: float, t_end: float, *, skip: str | None
+) -> None:
+    """Raise :class:`InputRangeError` if an input signal leaves the model's range for it on
+    [t0, t_end] (``model.input_ranges``; e.g. a throttle above 1 or a pedal outside the actuator
+    stroke)."""
+    for name, unit, (lo, hi), sig in zip(
+        model.input_names, model.input_units, model.input_ranges, sigs, strict=False
+    ):
+        if name == skip or (lo == -math.inf and hi == math.inf):
+            continue
+        (vmin, tmin), (vmax, tmax) = sig.extremes(t0, t_end)
+        tol = 1e-12 * max(
+            1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0
+        )
+        bad = (vmin, tmin) if vmin < lo - tol else (vmax, tmax) if vmax > hi + tol else None
+        if bad is not None:
+            u = f" {unit}" if unit and unit != "-" else ""
+            raise InputRangeError(
+                f"input {name!r} = {bad[0]:.6g}{u} at t = {bad[1]:.6g} s: outside its range "
+                f"[{lo:g}, {hi:g}]{u} on this model ({model.chain.name})"
+            )
+
+
+def _raise_non_finite(model: Model, T: F64, Y: F64, nx: int, nxs: int) -> None:
+    """Raise ``RuntimeError`` naming the first time and column at which the run went non-finite."""
+    rows = np.flatnonzero(~np.isfinite(Y).all(axis=1))
+    i = int(rows[0])
+    col = int(np.flatnonzero(~np.isfinite(Y[i]))[0])
+    if col < nx:
+        what = f"state {model.state_names[col]!r}"
+    elif col < nxs:
+        what = f"controller state {col - nx}"
+    elif col == nxs:
+        what = "the supplied work"
+    else:
+        what = f"the dissipated energy of {model.power_names()[col - nxs - 1]!r}"
+    raise RuntimeError(
+        f"the simulation went non-finite: {what} = {float(Y[i, col])!r} at t = {float(T[i]):.9g} s. "
+        "Check the inputs and the initial state for values far outside the physical range."
+    )
+
+
 def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
     unknown = set(inputs) - set(model.input_names)
     if unknown:
@@ -420,9 +478,39 @@ def simulate(
     the actuator position [m]). Returns a
     :class:`SimulationResult`; raises :class:`ZenoError` if events accumulate (unless
     ``raise_on_zeno=False``, then the partial result has ``status == 'zeno'``).
+
+    Bad input is rejected before the run, naming the argument: an input signal outside the
+    model's range for it (``model.input_ranges``: on the drivetrain throttle in [0, 1], pedal
+    within the actuator stroke, brake in [0, brake.capacity_max]) raises
+    :class:`InputRangeError` with the value and the time; a run whose state or energies become
+    non-finite raises ``RuntimeError`` naming the time and the column.
     """
-    opts = options or SimulationOptions()
-    x0 = np.array(x0, dtype=float)
+    if options is None:
+        opts = SimulationOptions()
+    elif isinstance(options, SimulationOptions):
+        opts = options
+    else:
+        raise TypeError(
+            f"options = {options!r}: must be a SimulationOptions (e.g. "
+            "SimulationOptions(rtol=1e-9)) or None"
+        )
+    if not isinstance(raise_on_zeno, bool):
+        raise TypeError(f"raise_on_zeno = {raise_on_zeno!r}: must be True or False")
+    for nm, v in (("t0", t0), ("t_end", t_end)):
+        if not is_finite_real(v):
+            raise ValueError(f"{nm} = {v!r}: must be a finite number [s]")
+    if controller is not None and not hasattr(controller, "compile"):
+        raise TypeError(
+            f"controller = {controller!r}: must be a closedloop.Controller (build one with "
+            "controllers.load_controller(NAME_OR_FILE).build(params, reference=...), or let "
+            "Scenario.run(dt, controller=NAME) do it)"
+        )
+    try:
+        x0 = np.array(x0, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"x0 = {x0!r}: must be {model.nx} numbers for states {model.state_names} ({exc})"
+        ) from None
     if x0.shape != (model.nx,):
         raise ValueError(
             f"x0 must have shape ({model.nx},) for states {model.state_names}, got {x0.shape}"
@@ -430,10 +518,11 @@ def simulate(
     if not np.all(np.isfinite(x0)):
         bad = [model.state_names[i] for i in np.flatnonzero(~np.isfinite(x0))]
         raise ValueError(f"x0 has non-finite values in {bad}")
-    if not (math.isfinite(t_end) and math.isfinite(t0) and t_end > t0):
-        raise ValueError(f"t_end = {t_end!r} must be finite and > t0 = {t0!r}")
+    if not t_end > t0:
+        raise ValueError(f"t_end = {t_end!r} must be > t0 = {t0!r} [s]")
+    driven_input = None
     if controller is not None:
-        driven = controller.output
+        driven = driven_input = controller.output
         if driven not in model.input_names:
             raise KeyError(
                 f"controller output {driven!r} is not an input of the model {model.input_names}"
@@ -444,10 +533,21 @@ def simulate(
             )
         inputs = {**inputs, driven: 0.0}
     sigs = _signals_for(model, inputs)
+    _check_input_ranges(model, sigs, float(t0), float(t_end), skip=driven_input)
+    ci = controller_initial
+    if controller is None and not (is_finite_real(ci) and ci == 0.0):
+        raise ValueError(
+            f"controller_initial = {ci!r}: only a closed-loop run (controller=...) uses it"
+        )
     if controller is not None:
-        ci = controller_initial
         if not is_finite_real(ci):
             raise ValueError(f"controller_initial = {ci!r}: must be a finite number")
+        lo, hi = model.input_ranges[model.input_names.index(controller.output)]
+        if not lo <= ci <= hi:
+            raise ValueError(
+                f"controller_initial = {ci!r}: outside the range [{lo:g}, {hi:g}] of the "
+                f"controlled input {controller.output!r} on this model"
+            )
         Cd, cs, refs = controller.compile(model, hold=float(controller_initial))
         y_cl0 = controller.initial_states(model, x0, float(controller_initial))
         sigs = sigs + list(refs)
@@ -471,7 +571,7 @@ def simulate(
         opts.rtol,
         opts.atol,
         opts.h_max,
-        opts.h_init,
+        min(opts.h_init, opts.h_max),
         opts.tol_w,
         opts.energy,
         opts.zeno_count,
@@ -491,6 +591,8 @@ def simulate(
     nxs = nx + y_cl0.shape[0]
     events = _events(model, evt, evel, evf, evto)
     stat = _STATUS.get(int(status), str(status))
+    if T.shape[0] and not np.isfinite(Y[-1]).all():
+        _raise_non_finite(model, T, Y, nx, nxs)
     res = SimulationResult(
         model=model,
         t=T,
@@ -531,7 +633,15 @@ def simulate(
             "other, or give fewer friction elements."
         )
     if stat not in ("ok", "zeno"):
-        raise RuntimeError(f"simulation stopped at t = {float(t_last):.9g} s: {stat}")
+        hint = {
+            "step_too_small": "the step size fell below 1e-14 s (a state changing too fast: "
+            "check the initial state and the inputs for values far outside the physical range)",
+            "max_steps": f"SimulationOptions.max_steps = {opts.max_steps} steps taken before "
+            f"t_end = {float(t_end):g} s (raise max_steps, or shorten the run)",
+            "max_events": f"SimulationOptions.max_events = {opts.max_events} events before "
+            f"t_end = {float(t_end):g} s (raise max_events, or shorten the run)",
+        }.get(stat, stat)
+        raise RuntimeError(f"simulation stopped at t = {float(t_last):.9g} s: {hint}")
     if nincons > 0:
         warnings.warn(
             f"{int(nincons)} mode decision(s) found no consistent stuck/slip combination (or "

@@ -255,3 +255,61 @@ def test_simulate_builds_the_controller_once(tmp_path: Path) -> None:
     assert code == 0
     unstable = [w for w in caught if issubclass(w.category, UnstableLoopWarning)]
     assert len(unstable) == 1, [str(w.message) for w in unstable]
+
+
+def _scenario_file(tmp_path: Path, name: str, **inputs: dict[str, list[float]]) -> Path:
+    import tomli_w
+
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    d = load_scenario(name).to_dict()
+    d["inputs"].update(inputs)
+    path = tmp_path / f"{name}-variant.toml"
+    path.write_text(tomli_w.dumps(d), encoding="utf-8")
+    return path
+
+
+def test_out_that_is_a_file_or_empty_fails_before_the_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    afile = tmp_path / "afile"
+    afile.write_text("keep me", encoding="utf-8")
+    for out, msg in ((afile, "is an existing file"), (afile / "sub", "is an existing file")):
+        assert simulate_reduced("tip-in", out) == 2
+        err = capsys.readouterr().err
+        assert msg in err and str(afile) in err
+    assert afile.read_text(encoding="utf-8") == "keep me"
+    assert main(["simulate", "--scenario", "tip-in", "--out", ""]) == 2
+    assert "give an output directory" in capsys.readouterr().err
+
+
+def test_rerun_into_the_same_out_says_what_it_replaced(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "o"
+    assert simulate_reduced("tip-in", out) == 0
+    assert "replaced" not in capsys.readouterr().err
+    assert simulate_reduced("tip-in", out) == 0
+    assert "replaced the earlier trajectory.csv, events.csv" in capsys.readouterr().err
+
+
+def test_bad_scenario_inputs_exit_2_without_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cases = [
+        ({"pedal": {"times": [0.2, 1.2], "values": [5.0, 0.03]}}, "input 'pedal' = 5 m"),
+        ({"throttle": {"times": [0.0], "values": [10.0]}}, "input 'throttle' = 10"),
+        # the start command after t_end: the message names the file's t_end, not --t-end
+        ({"pedal": {"times": [10.0, 20.0], "values": [0.11, 0.03]}}, "t_end = 3.0 s ends before"),
+    ]
+    for k, (inputs, msg) in enumerate(cases):
+        path = _scenario_file(tmp_path, "engage-ramp", **inputs)
+        assert simulate_reduced(str(path), tmp_path / f"o{k}") == 2, msg
+        err = capsys.readouterr().err
+        assert msg in err and "Traceback" not in err and "--t-end" not in err
+    # knots before the run: the metrics start at 0 (no traceback, exit 0)
+    path = _scenario_file(
+        tmp_path, "engage-ramp", pedal={"times": [-5.0, -1.0], "values": [0.11, 0.03]}
+    )
+    assert simulate_reduced(str(path), tmp_path / "neg", "--t-end", "0.3") == 0
+    assert "Traceback" not in capsys.readouterr().err

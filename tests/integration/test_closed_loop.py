@@ -243,3 +243,52 @@ def test_shortcuts_latch_only_with_an_engage_rate() -> None:
         latched = make(engage_rate=0.02)
         assert latched.latch is not None
         assert latched.latch.rate == pytest.approx(0.02)
+
+
+DISCRETE = control.ss([], [], [], [[1.0]], 0.01)
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"lti": DISCRETE, "delay_samples": 1.5}, "delay_samples = 1.5: must be a whole number"),
+        ({"lti": DISCRETE, "delay_samples": "1"}, "delay_samples = '1'"),
+        ({"lti": DISCRETE, "delay_samples": 10**9}, r"delay_samples = 1000000000: .*<= 100000"),
+        ({"offset": math.nan}, "offset = nan: must be a finite number"),
+        ({"offset": "0.07"}, "offset = '0.07'"),
+        ({"saturation": ("0", "1")}, r"saturation = \('0', '1'\): must be a pair"),
+        ({"saturation": (0.0, 1.0, 2.0)}, "saturation = .*must be a pair"),
+        ({"rate_limit": (math.inf, 1.0)}, "rate_limit = .*must be a pair of finite numbers"),
+        ({"initial_lti_state": (0.0, 0.0)}, r"initial_lti_state = \(0.0, 0.0\): must be 0 finite"),
+        ({"reference": 100.0}, "reference = 100.0: must be a Signal"),
+    ],
+)
+def test_controller_fields_are_checked_and_named(kw: dict[str, object], match: str) -> None:
+    if "reference" in kw:  # _p gives a reference of its own
+        with pytest.raises(ValueError, match=match):
+            Controller(
+                lti=control.ss([], [], [], [[1.0]]),
+                measurement=((1.0, "omega_b"),),
+                output="torque",
+                **kw,  # type: ignore[arg-type]
+            )
+        return
+    with pytest.raises(ValueError, match=match):
+        _p(1.0, **kw)
+    # numpy integers are whole numbers
+    assert _p(1.0, lti=DISCRETE, delay_samples=np.int64(2)).delay_samples == 2
+
+
+def test_controller_initial_outside_the_input_range_is_rejected() -> None:
+    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    p = default_params()
+    sc = load_scenario("paper-start", params=p)
+    dt = sc.drivetrain(p, kind="reduced")
+    ctl = sc.make_controller(dt, "paper")
+    with pytest.raises(
+        ValueError, match=r"controller_initial = 5.0: outside the range \[0, 0.12\]"
+    ):
+        simulate(dt.model, sc.initial_state(dt), sc.input_signals(), t_end=0.1, controller=ctl,
+                 controller_initial=5.0)  # fmt: skip

@@ -15,7 +15,13 @@ from drivetrain_ctrl.drivetrain import Drivetrain
 from drivetrain_ctrl.model import Model
 from drivetrain_ctrl.params import default_params
 from drivetrain_ctrl.scenarios import builtin_scenarios
-from drivetrain_ctrl.simulate import Event, SimulationOptions, SimulationResult, simulate
+from drivetrain_ctrl.simulate import (
+    Event,
+    InputRangeError,
+    SimulationOptions,
+    SimulationResult,
+    simulate,
+)
 
 
 @functools.cache
@@ -365,3 +371,106 @@ def test_plot_overview_saves_a_png_with_four_panels(tmp_path: object) -> None:
         assert set(moded) <= set(labels), labels
     finally:
         plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------------------
+# bad arguments and inputs outside the physical range
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kw", "exc", "match"),
+    [
+        ({"options": {}}, TypeError, r"options = \{\}: must be a SimulationOptions"),
+        ({"options": 0}, TypeError, "options = 0"),
+        ({"t_end": "3"}, ValueError, "t_end = '3': must be a finite number"),
+        ({"t_end": True}, ValueError, "t_end = True"),
+        ({"t0": None}, ValueError, "t0 = None"),
+        ({"raise_on_zeno": "no"}, TypeError, "raise_on_zeno = 'no'"),
+        ({"controller": "paper"}, TypeError, "controller = 'paper': must be a closedloop"),
+        ({"controller_initial": 0.07}, ValueError, "controller_initial = 0.07: only a closed"),
+    ],
+)
+def test_bad_simulate_arguments_name_the_argument(
+    kw: dict[str, object], exc: type[Exception], match: str
+) -> None:
+    m, inputs, x0 = small()
+    args: dict[str, object] = {"t_end": 1.0, **kw}
+    with pytest.raises(exc, match=match):
+        simulate(m, x0, inputs, **args)  # type: ignore[arg-type]
+
+
+def test_non_numeric_x0_is_named() -> None:
+    m, inputs, _ = small()
+    with pytest.raises(ValueError, match=r"x0 = \['a', 'b'\]: must be 2 numbers .*omega_b1"):
+        simulate(m, ["a", "b"], inputs, t_end=1.0)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("name", "signal", "match"),
+    [
+        (
+            "throttle",
+            sg.constant(10.0),
+            r"input 'throttle' = 10 at t = 0 s: outside its range \[0, 1\]",
+        ),
+        ("throttle", sg.step(0.5, -1.5, initial=0.5), r"'throttle' = -1 at t = 0.5 s"),
+        ("pedal", sg.ramp(0.2, 1.0, 0.11, -0.1), r"'pedal' = -0.1 m at t = 1 s: .*\[0, 0.12\] m"),
+        ("brake", sg.constant(-3000.0), r"'brake' = -3000 N m .*\[0, 3000\] N m"),
+        (
+            "brake",
+            sg.constant(2000.0) + sg.sine(1500.0, 20.0),
+            r"'brake' = 3[45][0-9.]+ N m at t = 0.07",
+        ),
+    ],
+)
+def test_inputs_outside_their_physical_range_are_rejected(
+    name: str, signal: sg.Signal, match: str
+) -> None:
+    """The drivetrain's inputs have ranges (throttle [0, 1], pedal within the actuator stroke,
+    brake within [0, brake.capacity_max]); a signal that leaves one is rejected before the run,
+    naming the input, the value and the time."""
+    dt, _ = engage()
+    sc = builtin_scenarios()["engage-ramp"]
+    inputs = {**sc.input_signals(), name: signal}
+    with pytest.raises(InputRangeError, match=match):
+        simulate(dt.model, sc.initial_state(dt), inputs, t_end=3.0)
+
+
+def test_input_ranges_follow_the_parameter_set() -> None:
+    p = default_params()
+    dt = Drivetrain(p.replace(**{"actuator.x_max": 0.2, "brake.capacity_max": 5000.0}))
+    ranges = dict(zip(dt.model.input_names, dt.model.input_ranges, strict=True))
+    assert ranges == {"throttle": (0.0, 1.0), "pedal": (0.0, 0.2), "brake": (0.0, 5000.0)}
+    # a chain without ranges leaves its inputs unbounded
+    m, _, x0 = small()
+    assert m.input_ranges == ((-math.inf, math.inf),)
+    simulate(m, x0, {"torque1": 1e6}, t_end=0.01)
+
+
+def test_a_run_that_goes_non_finite_is_an_error_naming_time_and_column() -> None:
+    dt, _ = engage()
+    sc = builtin_scenarios()["engage-ramp"]
+    x0 = sc.initial_state(dt)
+    x0[dt.model.state_index("omega_engine")] = 1e300
+    with pytest.raises(RuntimeError, match=r"went non-finite: .* at t = [0-9.e-]+ s"):
+        simulate(dt.model, x0, sc.input_signals(), t_end=0.1)
+
+
+def test_options_accept_numpy_scalars_and_reject_a_meaningless_rtol() -> None:
+    o = SimulationOptions(rtol=np.float32(1e-8), max_steps=np.int64(1000))
+    assert isinstance(o.rtol, float) and o.rtol == pytest.approx(1e-8)
+    assert isinstance(o.max_steps, int) and o.max_steps == 1000
+    for bad in (1.0, 1e10):
+        with pytest.raises(ValueError, match=rf"SimulationOptions\.rtol = {bad!r}: must be < 1e-2"):
+            SimulationOptions(rtol=bad)
+    with pytest.raises(ValueError, match=r"SimulationOptions\.rtol = 10{400}"[:-5]):
+        SimulationOptions(rtol=10**400)
+
+
+def test_h_init_above_h_max_starts_at_h_max() -> None:
+    m, inputs, x0 = small()
+    a = simulate(m, x0, inputs, t_end=0.5, options=SimulationOptions(h_init=1e-3, h_max=1e-4))
+    b = simulate(m, x0, inputs, t_end=0.5, options=SimulationOptions(h_init=1e-4, h_max=1e-4))
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x)
+    assert a.t[1] - a.t[0] == pytest.approx(1e-4)

@@ -19,6 +19,7 @@ from drivetrain_ctrl.controllers import (
     UnstableLoopWarning,
     builtin_controllers,
     controller_from_dict,
+    load_controller,
 )
 from drivetrain_ctrl.loading import is_finite_real, load_toml_as, reject_unknown
 from drivetrain_ctrl.params import default_params
@@ -114,3 +115,11 @@ def test_builtin_controllers_build() -> None:
         assert c.name == spec.name and c.output == "pedal"
         assert c.saturation == (act.x_min, act.x_max)  # the actuator stroke
         assert c.is_discrete == (spec.sample_period_s is not None)
+
+
+def test_build_checks_the_reference_and_start_time() -> None:
+    spec = load_controller("paper")
+    with pytest.raises(ControllerError, match="reference = 100.0: must be a Signal"):
+        spec.build(P, reference=100.0)  # type: ignore[arg-type]
+    with pytest.raises(ControllerError, match="start_time = 'now'"):
+        spec.build(P, reference=constant(100.0), start_time="now")  # type: ignore[arg-type]

@@ -14,6 +14,7 @@ from drivetrain_ctrl.scenarios import (
     load_scenario,
     scenario_from_dict,
 )
+from drivetrain_ctrl.signals import constant, step
 
 P = default_params()
 SC = load_scenario("paper-start", params=P)
@@ -72,3 +73,65 @@ def test_twist_torque_must_be_a_number_and_is_named(v: object) -> None:
         scenario_from_dict(d)
     d["initial"]["twist_torque"] = -12.5
     assert scenario_from_dict(d).twist_torque0 == -12.5
+
+
+ENGAGE = load_scenario("engage-ramp")
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("name", "", "name = '': must be a non-empty string"),
+        ("name", 5, "name = 5"),
+        ("description", [1, 2], r"description = \[1, 2\]: must be a string"),
+        ("gear", 1.0, "gear = 1.0: must be an integer"),
+        ("slope", "0", "slope = '0': must be a finite number"),
+        ("omega_engine0", None, "omega_engine0 = None"),
+        ("pedal0", "0.1", "pedal0 = '0.1'"),
+        ("clutch_locked0", "no", "clutch_locked0 = 'no': must be True or False"),
+        ("throttle0", 5.0, r"throttle0 = 5.0: .*\[0, 1\]"),
+        ("throttle0", -0.5, "throttle0 = -0.5"),
+        ("omega_engine0", -199.0, "omega_engine0 = -199.0 .*must be >= 0"),
+        ("inputs", {"throttle": 0.5}, "inputs = .*must be a tuple of .name, Signal. pairs"),
+        ("control_start", "0.5", "control_start = '0.5'"),
+    ],
+)
+def test_scenario_fields_are_checked_and_named(field: str, value: object, match: str) -> None:
+    with pytest.raises(ScenarioError, match=match):
+        dataclasses.replace(ENGAGE, **{field: value})
+
+
+def test_duplicate_inputs_are_rejected() -> None:
+    dup = (*ENGAGE.inputs, ("pedal", constant(0.05)))
+    with pytest.raises(ScenarioError, match=r"input\(s\) \['pedal'\] given more than once"):
+        dataclasses.replace(ENGAGE, inputs=dup)
+
+
+def test_negative_reference_is_rejected() -> None:
+    with pytest.raises(ScenarioError, match=r"reference_rpm = -1600 rpm at t = 0.5 s"):
+        dataclasses.replace(SC, reference=constant(0.0) + step(0.5, -1600.0 * np.pi / 30.0))
+
+
+def test_pedal_in_a_closed_loop_scenario_file_is_an_error() -> None:
+    d = SC.to_dict()
+    d["inputs"]["pedal"] = {"times": [0.0], "values": [0.1]}
+    with pytest.raises(ScenarioError, match=r"inputs.pedal: the pedal is driven by the controller"):
+        scenario_from_dict(d)
+
+
+def test_start_time_is_not_before_the_run() -> None:
+    """Pedal knots before t = 0 (a release that began before the run) start the metrics at 0."""
+    d = ENGAGE.to_dict()
+    d["inputs"]["pedal"] = {"times": [-5.0, 1.0], "values": [0.11, 0.03]}
+    assert scenario_from_dict(d).start_time == 0.0
+    d["inputs"]["pedal"] = {"times": [-5.0, -1.0], "values": [0.11, 0.03]}
+    assert scenario_from_dict(d).start_time == 0.0
+    assert ENGAGE.start_time == 0.2
+
+
+def test_load_scenario_takes_a_parameter_set_name_and_checks_types() -> None:
+    assert load_scenario("paper-start", params="passenger-car") == SC
+    with pytest.raises(ScenarioError, match="params = 5: give a DrivetrainParams"):
+        load_scenario("paper-start", params=5)  # type: ignore[arg-type]
+    with pytest.raises(ScenarioError, match="source = None: give a scenario name or a path"):
+        load_scenario(None)  # type: ignore[arg-type]

@@ -253,3 +253,65 @@ def test_from_dict_rejects_non_finite_sine(key: str) -> None:
 def test_from_dict_missing_sine_key_is_a_value_error() -> None:
     with pytest.raises(ValueError, match="amplitude"):
         Signal.from_dict({"times": [0.0], "values": [0.0], "sines": [{"omega": 1.0}]}, name="pedal")
+
+
+# ------------------------------------------------------------------------------------------------
+# extremes (the simulator's input-range check) and bad input
+# ------------------------------------------------------------------------------------------------
+
+
+def test_extremes_of_the_piecewise_linear_part_are_exact_and_earliest() -> None:
+    assert ramp(0.2, 2.2, 0.11, 0.03).extremes(0.0, 3.0) == ((0.03, 2.2), (0.11, 0.0))
+    # both sides of a jump count; of equal values the earliest time is given
+    s = table([0.0, 1.0, 1.0, 2.0], [0.0, 1.0, 5.0, 0.0])
+    assert s.extremes(0.5, 1.5) == ((0.5, 0.5), (5.0, 1.0))
+    assert step(0.5, -1.5, initial=0.5).extremes(0.0, 3.0) == ((-1.0, 0.5), (0.5, 0.0))
+    # only the window counts
+    assert step(2.0, 10.0).extremes(0.0, 1.0) == ((0.0, 0.0), (0.0, 0.0))
+
+
+@settings(max_examples=30, deadline=None)
+@given(a=st.floats(0.0, 2.0), w=st.floats(0.5, 50.0), c=finite, t0=st.floats(0.0, 1.0))
+def test_extremes_with_sines_bracket_a_dense_sampling(
+    a: float, w: float, c: float, t0: float
+) -> None:
+    s = constant(c) + ramp(0.3, 0.8, 0.0, 1.0) + sine(a, w, t_start=t0)
+    (lo, _), (hi, _) = s.extremes(0.0, 2.0)
+    v = np.asarray(s(np.linspace(0.0, 2.0, 20001)))
+    tol = 1e-2 * (a + 1.0)  # grid of 40 points a period: within 0.3 % of the amplitude
+    assert lo <= v.min() + tol and hi >= v.max() - tol
+    # and never beyond what the signal can reach (ramp part within [c, c + 1])
+    assert lo >= c - a - 1e-9 and hi <= c + 1.0 + a + 1e-9
+
+
+@pytest.mark.parametrize(
+    ("fn", "exc", "match"),
+    [
+        (lambda: table(["a"], [0.0]), TypeError, r"table: times\[0\] must be a real number"),
+        (lambda: table([0.0], [math.nan]), ValueError, r"table: values\[0\] must be finite"),
+        (lambda: table(1.0, 2.0), TypeError, "table: times = 1.0: must be a sequence"),
+        (lambda: constant(1.0) - "a", TypeError, "constant must be a real number, got 'a'"),
+        (lambda: Signal((0.0,), (1.0,), (1.0,)), TypeError, r"Signal.sines\[0\] = 1.0"),
+        (lambda: Signal([0.0], [1.0]), TypeError, r"Signal.times = \[0.0\]: must be a tuple"),
+    ],
+)
+def test_bad_signal_construction_names_the_field(fn: object, exc: type, match: str) -> None:
+    with pytest.raises(exc, match=match):
+        fn()  # type: ignore[operator]
+
+
+@pytest.mark.parametrize(
+    ("d", "match"),
+    [
+        (5.0, r"inputs.pedal = 5.0: must be a table with 'times' and 'values'"),
+        ("ramp", r"inputs.pedal = 'ramp': must be a table"),
+        (
+            {"times": [0.0], "values": [1.0], "sines": {"amplitude": 1.0, "omega": 2.0}},
+            r"inputs.pedal.sines = .*array of tables.*\[\[inputs.pedal.sines\]\]",
+        ),
+        ({"times": [0.0], "values": [1.0], "sines": 5}, r"inputs.pedal.sines = 5"),
+    ],
+)
+def test_from_dict_with_wrong_types_names_the_field(d: object, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        Signal.from_dict(d, name="inputs.pedal")  # type: ignore[arg-type]
