@@ -39,6 +39,8 @@ from .linear import (
     linearise,
     natural_frequency_damping,
     rebuild_operating_point,
+    require_controller,
+    require_op,
     trim_tf,
 )
 from .loading import is_finite_real
@@ -293,6 +295,8 @@ def clutch_loop_margins(
 ) -> LoopMargins:
     """Margins of ``controller``'s clutch loop at ``op``; with the clutch not slipping the loop
     is open and every margin is None with the reason."""
+    require_op(op, "clutch_loop_margins")
+    require_controller(controller, "clutch_loop_margins")
     if op.clutch_mode not in ("slip+", "slip-"):
         return LoopMargins.undefined(
             f"clutch {op.clutch_mode}: x_c does not act on the engine speed, the clutch loop is "
@@ -424,6 +428,8 @@ def root_locus(
     * ``omega_a`` [rad/s]: actuator natural frequency;
     * ``mu_slope`` [s/rad]: clutch friction slope (the linearisation override).
     """
+    require_op(op, "root_locus")
+    require_controller(controller, "root_locus", optional=True)
     if parameter not in PARAMETERS:
         raise ValueError(f"parameter = {parameter!r}: choose from {sorted(PARAMETERS)}")
     vals = _values(values)

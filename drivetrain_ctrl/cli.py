@@ -33,6 +33,7 @@ import os
 import sys
 import textwrap
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -111,7 +112,7 @@ def run_simulation(
     scenario: Scenario,
     params: DrivetrainParams,
     kind: str,
-    out: Path,
+    out: Path | str,
     *,
     rtol: float | None = None,
     t_end: float | None = None,
@@ -130,6 +131,7 @@ def run_simulation(
     from .simulate import InputRangeError, SimulationOptions, ZenoError
 
     tic = time.perf_counter()
+    out = Path(out)
     _check_out_dir(out)
     try:
         opts = SimulationOptions() if rtol is None else SimulationOptions(rtol=rtol)
@@ -244,6 +246,16 @@ def _check_out_dir(out: Path) -> None:
                 what = f"--out {out}" if p == out else f"--out {out}: {p}"
                 raise InputError(f"{what} is an existing file, not a directory")
             break
+
+
+def _note_existing(out: Path) -> None:
+    """Say on stderr that ``out`` already holds files (outputs of the same names are replaced)."""
+    if out.is_dir() and any(out.iterdir()):
+        print(
+            f"{PROG}: writing into the existing {out}/: earlier outputs of the same names are "
+            "replaced",
+            file=sys.stderr,
+        )
 
 
 def _fmt(v: Any, spec: str = ".4g") -> str:
@@ -400,6 +412,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     params = _load_params(args.params)
     out = Path(args.out)
     _check_out_dir(out)
+    _note_existing(out)
     kinds = ("reduced",) if args.quick else MODELS
     jobs = [
         (s, k, c)
@@ -431,6 +444,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         build_report(controller="paper", params=params, model="reduced", out=out / "report-paper")
     except OSError as exc:
         raise RunError(f"cannot write the report to {out / 'report-paper'}: {exc}") from None
+    except ValueError as exc:  # e.g. a parameter set on which law (6) cannot be analysed
+        raise InputError(f"report-paper: {_msg(exc)}") from None
+    except RuntimeError as exc:
+        raise RunError(f"report-paper: {exc}") from None
     try:
         (out / "summary.md").write_text(_summary_md(done, params, args.quick), encoding="utf-8")
     except OSError as exc:
@@ -447,6 +464,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from .report import build_report
 
     _check_out_dir(Path(args.out))
+    _note_existing(Path(args.out))
     params = _load_params(args.params)
     try:
         rep = build_report(
@@ -460,6 +478,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         raise InputError(_msg(exc)) from None
     except OSError as exc:
         raise RunError(f"cannot write the report to {args.out}: {exc}") from None
+    except RuntimeError as exc:  # a simulation of the report failed (ZenoError included)
+        raise RunError(f"report: {exc}") from None
     for f in rep.files:
         print(f)
     return 0
@@ -630,6 +650,16 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _format_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    line: str | None = None,
+) -> str:
+    return f"{PROG}: {category.__name__}: {message}\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``drivetrain-ctrl`` with ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
@@ -639,7 +669,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 2)
     try:
-        return int(args.func(args))
+        with warnings.catch_warnings():
+            # a warning is a line of its own: the tool's name, the category and the message
+            warnings.formatwarning = _format_warning
+            return int(args.func(args))
     except InputError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2

@@ -88,8 +88,9 @@ class LatchRamp:
             raise ValueError(f"LatchRamp.rate = {self.rate!r} [unit/s]: must be > 0")
 
 
-#: largest transport delay [samples] (a buffer of this many values is kept in the loop)
-MAX_DELAY_SAMPLES = 100_000
+#: largest transport delay of a :class:`Controller` [samples]: the loop keeps a buffer of this
+#: many values (a ``ControllerSpec`` allows fewer, ``controllers.MAX_DELAY_SAMPLES``)
+DELAY_BUFFER_MAX = 100_000
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -130,10 +131,10 @@ class Controller:
             raise ValueError(
                 f"{self.name}.delay_samples = {ds!r}: must be a whole number of samples"
             )
-        if ds < 0 or (ds and not self.is_discrete) or ds > MAX_DELAY_SAMPLES:
+        if ds < 0 or (ds and not self.is_discrete) or ds > DELAY_BUFFER_MAX:
             raise ValueError(
                 f"{self.name}.delay_samples = {ds}: needs a discrete lti and 0 <= delay_samples "
-                f"<= {MAX_DELAY_SAMPLES}"
+                f"<= {DELAY_BUFFER_MAX}"
             )
         if not is_finite_real(self.offset):
             raise ValueError(f"{self.name}.offset = {self.offset!r}: must be a finite number")

@@ -153,7 +153,11 @@ class ControllerSpec:
         if self.sample_period_s is not None:
             _finite(w, "sample_period_s", self.sample_period_s, *SAMPLE_PERIOD_RANGE)
         d = self.delay_samples
-        if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d <= MAX_DELAY_SAMPLES:
+        if (
+            isinstance(d, bool)
+            or not isinstance(d, (int, np.integer))
+            or not 0 <= d <= MAX_DELAY_SAMPLES
+        ):
             raise ControllerError(
                 f"{w}delay_samples = {d!r}: must be an integer in [0, {MAX_DELAY_SAMPLES}]"
             )
@@ -257,7 +261,7 @@ class ControllerSpec:
             measurement=((1.0, "ref"), (-1.0, engine_state)),
             output="pedal",
             reference=reference,
-            delay_samples=self.delay_samples,
+            delay_samples=int(self.delay_samples),
             sign_of=(engine_state, driven_state),
             offset=x_r0,
             saturation=(act.x_min, act.x_max),

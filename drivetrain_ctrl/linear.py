@@ -396,9 +396,23 @@ def operating_point_from_result(
     is recorded in the result. Raises ValueError if ``t`` is outside the trajectory.
     """
     t = _finite("t", t)
+    if drivetrain is not None and (
+        not isinstance(drivetrain, Drivetrain) or drivetrain.model.chain != result.model.chain
+    ):
+        got = (
+            f"{drivetrain.kind}, gear {drivetrain.gear}"
+            if isinstance(drivetrain, Drivetrain)
+            else repr(drivetrain)
+        )
+        raise ValueError(
+            f"drivetrain = ({got}): not the drivetrain of the result, whose model is "
+            f"{result.model.chain.name!r}"
+        )
     T = np.asarray(result.t)
     if not T[0] <= t <= T[-1]:
-        raise ValueError(f"t = {t!r} s: outside the trajectory [{T[0]!r}, {T[-1]!r}] s")
+        raise ValueError(
+            f"t = {t!r} s: outside the trajectory [{float(T[0])!r}, {float(T[-1])!r}] s"
+        )
     k = int(np.searchsorted(T, t, side="right") - 1)
     k = min(k, T.shape[0] - 1)
     x = np.array(result.x[k], dtype=float)
@@ -620,6 +634,11 @@ def locked_trim(
     for j, qi in enumerate(q_idx):
         p[1 + j] = x_guess[qi]
     n_eq = len(resid(p))
+    if names.get("tyre", "grip") != "grip" or not np.isfinite(resid(p)).all():
+        raise ValueError(
+            f"locked_trim: vehicle_speed_kmh = {vk!r}: no locked steady state there (the initial "
+            f"decision gives {names}; residual finite: {bool(np.isfinite(resid(p)).all())})"
+        )
     if n_eq != p.shape[0]:
         raise RuntimeError(  # pragma: no cover - structural
             f"locked_trim: {n_eq} equations for {p.shape[0]} unknowns in mode {names}"
@@ -637,7 +656,7 @@ def locked_trim(
         sol = scipy.optimize.root(lambda q, reg=reg: resid(q, reg), p, method="hybr")
         p = sol.x
     res = float(np.max(np.abs(resid(p))))
-    if res > 1e-8 * max(1.0, float(np.max(np.abs(x0[: m.n_bodies])))):
+    if not res <= 1e-8 * max(1.0, float(np.max(np.abs(x0[: m.n_bodies])))):  # NaN too
         raise RuntimeError(f"locked_trim did not converge ({where}): residual {res:.3g}")
     theta = float(p[0])
     if not 0.0 <= theta <= 1.0:
@@ -890,13 +909,23 @@ def linearise(
     full state with the constrained Jacobian. The state units are in ``sys.state_units``-like
     order of ``sys.state_labels``.
     """
+    require_op(op, "linearise")
+    for nm, flag in (("keep_positions", keep_positions), ("reduce", reduce)):
+        if not isinstance(flag, bool):
+            raise TypeError(f"linearise: {nm} = {flag!r}: must be True or False")
     m = op.model
     for arg, val in (("inputs", inputs), ("outputs", outputs)):
+        if val is None and arg == "outputs":
+            continue
         if isinstance(val, str | bytes):
             raise ValueError(
                 f"{arg} = {val!r}: a sequence of names is needed, e.g. ({val!r},), not a bare "
                 "string"
             )
+        if not isinstance(val, Sequence) or not val:
+            raise TypeError(f"linearise: {arg} = {val!r}: must be a non-empty sequence of names")
+        if len(set(val)) != len(val):
+            raise ValueError(f"linearise: {arg} = {val!r}: names must not repeat")
     alias_inv = {v: k for k, v in INPUT_ALIASES.items() if k in m.input_names}
     for nm in inputs:
         if nm not in alias_inv:
@@ -982,7 +1011,30 @@ class EngineSide:
     tau_p: float
 
 
+def require_op(op: object, what: str) -> None:
+    """Raise ``TypeError`` unless ``op`` is an :class:`OperatingPoint` (``what``: the caller)."""
+    if not isinstance(op, OperatingPoint):
+        raise TypeError(
+            f"{what}: op = {op!r}: must be an OperatingPoint (slip_operating_point, locked_trim "
+            "or operating_point_from_result)"
+        )
+
+
+def require_controller(controller: object, what: str, *, optional: bool = False) -> None:
+    """Raise ``TypeError`` unless ``controller`` is a :class:`Controller` (or None if
+    ``optional``)."""
+    if optional and controller is None:
+        return
+    if not isinstance(controller, Controller):
+        raise TypeError(
+            f"{what}: controller = {controller!r}: must be a closedloop.Controller"
+            f"{' or None' if optional else ''} (build one with controllers.load_controller(NAME)"
+            ".build(params, reference=...))"
+        )
+
+
 def _require_slip(op: OperatingPoint, what: str) -> None:
+    require_op(op, what)
     if op.clutch_mode not in ("slip+", "slip-"):
         raise ValueError(
             f"{what}: op has the clutch {op.clutch_mode!r}; the clutch loop exists only in slip "
@@ -1209,6 +1261,7 @@ def clutch_loop(
     analysed in discrete time (ZOH-discretised plant, ``z^-d`` for the delay).
     """
     _require_slip(op, "clutch_loop")
+    require_controller(controller, "clutch_loop")
     if controller.output != "pedal":
         raise ValueError(f"controller.output = {controller.output!r}: must drive 'pedal'")
     es = engine_side(op, mu_slope=mu_slope)
@@ -1287,6 +1340,8 @@ def slip_mode_poles(
     """Poles [1/s] of the linearised slip mode: the plant alone (pedal held) or closed by a
     continuous ``controller`` (the full state-space interconnection, so every driveline mode is
     included, controllable or not)."""
+    require_op(op, "slip_mode_poles")
+    require_controller(controller, "slip_mode_poles", optional=True)
     return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
 
 
@@ -1536,6 +1591,7 @@ def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -
     ``c_crit`` is the crossing with the smaller ``|c|``.
     """
     _require_slip(op, "judder_threshold")
+    require_controller(controller, "judder_threshold", optional=True)
     if controller is None:
         return _judder_threshold(op, engine_side(op), None)
     if controller.is_discrete:

@@ -418,6 +418,20 @@ def engagement_metrics(
         )
     model = res.model
     names = model.state_names
+    if dt is not None and not (hasattr(dt, "kind") and hasattr(dt, "gear")):
+        raise TypeError(f"engagement_metrics: dt = {dt!r}: must be a Drivetrain or None")
+    frictions = [fi.name for fi in model.frictions]
+    for arg, val, default, known in (
+        ("vehicle", vehicle, "v_vehicle", names),
+        ("engine", engine, "omega_engine", names),
+        ("clutch", clutch, "clutch", frictions),
+    ):
+        # a name other than the default must exist (the defaults may be absent from a general
+        # chain: their metrics are then None)
+        if val != default and val not in known:
+            raise ValueError(
+                f"engagement_metrics: {arg} = {val!r}: not in the model (choose from {known})"
+            )
     out: dict[str, Any] = dict.fromkeys(METRIC_KEYS)
     out["model"] = dt.kind if dt is not None else None
     out["gear"] = int(dt.gear) if dt is not None else None

@@ -312,6 +312,9 @@ def _num(where: str, d: dict[str, Any], key: str) -> float:
 def scenario_from_dict(d: dict[str, Any]) -> Scenario:
     """Build a :class:`Scenario` from its TOML form (see the module docstring)."""
     _reject_unknown("", set(d), _TOP)
+    for key in ("name", "description"):
+        if key in d and not isinstance(d[key], str):
+            raise ScenarioError(f"{key} = {d[key]!r}: must be a string")
     name = str(d.get("name", "scenario"))
     ini = d.get("initial", {})
     if not isinstance(ini, dict):
@@ -363,6 +366,17 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
             sigs.append((n, Signal.from_dict(inputs[n], name=f"inputs.{n}")))
         except (TypeError, ValueError) as exc:
             raise ScenarioError(str(exc)) from exc
+    if not locked and _num("initial.", ini, "engine_speed_rpm") < 0.0:
+        raise ScenarioError(
+            f"initial.engine_speed_rpm = {ini['engine_speed_rpm']!r}: must be >= 0 (the engine "
+            "does not run backwards)"
+        )
+    if not 0.0 <= _num("initial.", ini, "throttle") <= 1.0:
+        raise ScenarioError(f"initial.throttle = {ini['throttle']!r}: must lie in [0, 1]")
+    if "slope_percent" in d and abs(math.atan(_num("", d, "slope_percent") / 100.0)) >= 1.5:
+        raise ScenarioError(
+            f"slope_percent = {d['slope_percent']!r}: out of range (|slope| < 1410 %, 86 deg)"
+        )
     return Scenario(
         name=name,
         description=str(d.get("description", "")),

@@ -102,10 +102,7 @@ class SimulationOptions:
         if not isinstance(self.energy, bool):
             raise ValueError(f"SimulationOptions.energy = {self.energy!r}: must be True or False")
         if self.smoothing is not None and (
-            isinstance(self.smoothing, bool)
-            or not isinstance(self.smoothing, (int, float))
-            or not math.isfinite(self.smoothing)
-            or self.smoothing <= 0
+            not is_finite_real(self.smoothing) or self.smoothing <= 0
         ):
             raise ValueError(
                 f"SimulationOptions.smoothing = {self.smoothing!r}: must be None or > 0"
@@ -520,6 +517,12 @@ def simulate(
         raise ValueError(f"x0 has non-finite values in {bad}")
     if not t_end > t0:
         raise ValueError(f"t_end = {t_end!r} must be > t0 = {t0!r} [s]")
+    if t_end - t0 > opts.max_steps * opts.h_max:
+        raise ValueError(
+            f"t_end = {t_end!r} s: a run of {t_end - t0:g} s cannot finish within "
+            f"SimulationOptions.max_steps = {opts.max_steps} steps of at most h_max = "
+            f"{opts.h_max:g} s (raise max_steps or h_max, or shorten the run)"
+        )
     driven_input = None
     if controller is not None:
         driven = driven_input = controller.output

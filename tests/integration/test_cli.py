@@ -313,3 +313,23 @@ def test_bad_scenario_inputs_exit_2_without_traceback(
     )
     assert simulate_reduced(str(path), tmp_path / "neg", "--t-end", "0.3") == 0
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_report_and_demo_failures_and_existing_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A simulation that fails inside ``report`` is a one-line error (exit 1), no traceback; a
+    report into a non-empty directory says that outputs are replaced."""
+    import drivetrain_ctrl.report as R
+
+    def boom(**_kw: object) -> None:
+        raise RuntimeError("simulation stopped at t = 0.1 s: step_too_small")
+
+    monkeypatch.setattr(R, "build_report", boom)
+    out = tmp_path / "rep"
+    out.mkdir()
+    (out / "old.txt").write_text("x", encoding="utf-8")
+    assert main(["report", "--controller", "paper", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "report: simulation stopped at t = 0.1 s" in err and "Traceback" not in err
+    assert "writing into the existing" in err and (out / "old.txt").exists()

@@ -474,3 +474,16 @@ def test_h_init_above_h_max_starts_at_h_max() -> None:
     b = simulate(m, x0, inputs, t_end=0.5, options=SimulationOptions(h_init=1e-4, h_max=1e-4))
     assert np.array_equal(a.t, b.t) and np.array_equal(a.x, b.x)
     assert a.t[1] - a.t[0] == pytest.approx(1e-4)
+
+
+def test_a_run_longer_than_max_steps_can_cover_is_rejected_up_front() -> None:
+    m, inputs, x0 = small()
+    with pytest.raises(ValueError, match=r"t_end = 1e\+300 s: a run of .* cannot finish"):
+        simulate(m, x0, inputs, t_end=1e300)
+    opts = SimulationOptions(max_steps=100, h_max=1e-3)
+    with pytest.raises(ValueError, match=r"max_steps = 100 steps of at most h_max = 0.001 s"):
+        simulate(m, x0, inputs, t_end=0.2, options=opts)
+
+
+def test_smoothing_accepts_numpy_scalars() -> None:
+    assert SimulationOptions(smoothing=np.float32(0.5)).smoothing == pytest.approx(0.5)

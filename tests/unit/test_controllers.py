@@ -123,3 +123,12 @@ def test_build_checks_the_reference_and_start_time() -> None:
         spec.build(P, reference=100.0)  # type: ignore[arg-type]
     with pytest.raises(ControllerError, match="start_time = 'now'"):
         spec.build(P, reference=constant(100.0), start_time="now")  # type: ignore[arg-type]
+
+
+def test_spec_delay_samples_takes_numpy_integers() -> None:
+    spec = ControllerSpec(
+        name="d", law="paper", k_r=0.02, sample_period_s=0.01, delay_samples=np.int64(2)
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnstableLoopWarning)  # stability is not the point here
+        assert spec.build(P, reference=constant(100.0)).delay_samples == 2

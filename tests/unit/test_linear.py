@@ -606,3 +606,66 @@ def test_law6_closed_form_names_a_bad_argument(field, value, msg):
               actuator=L.Actuator(P.actuator.omega_a, P.actuator.delta_a))  # fmt: skip
     with pytest.raises(ValueError, match=msg):
         L.law6_loop_closed_form(**{**kw, field: value})
+
+
+# ------------------------------------------------------------------------------------------------
+# bad arguments
+# ------------------------------------------------------------------------------------------------
+
+
+def test_wrong_op_and_controller_types_are_named() -> None:
+    from drivetrain_ctrl import analysis as A
+
+    op = _slip()
+    for fn in (L.clutch_loop, A.clutch_loop_margins):
+        with pytest.raises(
+            TypeError, match=r"controller = 'paper': must be a closedloop.Controller"
+        ):
+            fn(op, "paper")  # type: ignore[operator]
+    for fn in (L.slip_mode_poles, L.judder_threshold):
+        with pytest.raises(TypeError, match=r"controller = 'paper': .*or None"):
+            fn(op, "paper")  # type: ignore[operator]
+    with pytest.raises(TypeError, match=r"root_locus: controller = 'paper'"):
+        A.root_locus(op, "paper", parameter="k_r", values=[1e-3])  # type: ignore[arg-type]
+    for fn in (L.linearise, L.slip_mode_poles, L.engine_side):
+        with pytest.raises(TypeError, match=r"op = None: must be an OperatingPoint"):
+            fn(None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("kw", "exc", "match"),
+    [
+        ({"reduce": "no"}, TypeError, "reduce = 'no': must be True or False"),
+        ({"keep_positions": 1}, TypeError, "keep_positions = 1"),
+        ({"inputs": 5}, TypeError, "inputs = 5: must be a non-empty sequence"),
+        ({"inputs": ()}, TypeError, r"inputs = \(\)"),
+        ({"inputs": ("x_c", "x_c")}, ValueError, "must not repeat"),
+        ({"outputs": ("tau_13", "tau_13")}, ValueError, "must not repeat"),
+    ],
+)
+def test_linearise_checks_its_options(kw: dict[str, object], exc: type, match: str) -> None:
+    with pytest.raises(exc, match=match):
+        L.linearise(_slip(), **kw)  # type: ignore[arg-type]
+
+
+def test_locked_trim_that_goes_non_finite_is_an_error() -> None:
+    from drivetrain_ctrl.drivetrain import Drivetrain
+
+    for kind in ("full", "reduced"):
+        with pytest.raises(ValueError, match=r"vehicle_speed_kmh = 1e\+300: no locked steady"):
+            L.locked_trim(Drivetrain(P, kind=kind), vehicle_speed_kmh=1e300)
+
+
+def test_operating_point_from_result_rejects_another_drivetrain() -> None:
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    sc = load_scenario("engage-ramp")
+    dt = Drivetrain(P, kind="reduced")
+    res = sc.run(dt, t_end=0.5)
+    assert L.operating_point_from_result(res, 0.3, drivetrain=dt).kind == "reduced"
+    for other in (Drivetrain(P, kind="full"), Drivetrain(P, kind="reduced", gear=2)):
+        with pytest.raises(ValueError, match=r"not the drivetrain of the result"):
+            L.operating_point_from_result(res, 0.3, drivetrain=other)
+    with pytest.raises(ValueError, match=r"t = 9.0 s: outside the trajectory \[0.0, 0.5\] s"):
+        L.operating_point_from_result(res, 9.0)

@@ -215,3 +215,23 @@ def test_inconsistent_decisions_are_reported_not_silent(monkeypatch: pytest.Monk
     with pytest.warns(RuntimeWarning, match=r"^3 mode decision\(s\) found no consistent"):
         res3 = run(40.0)
     assert res3.stats["inconsistent_decisions"] == 3
+
+
+def test_misspelt_names_are_errors_while_absent_defaults_give_none() -> None:
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    dt = Drivetrain(default_params(), kind="reduced")
+    res = load_scenario("engage-ramp").run(dt, t_end=0.3)
+    for kw in ({"vehicle": "v_vehicel"}, {"engine": "omega_engin"}, {"clutch": "clutc"}):
+        ((arg, val),) = kw.items()
+        with pytest.raises(ValueError, match=rf"engagement_metrics: {arg} = '{val}': not in the"):
+            engagement_metrics(res, dt, **kw)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="dt = 'reduced': must be a Drivetrain or None"):
+        engagement_metrics(res, "reduced")  # type: ignore[arg-type]
+    # a general chain has none of the default names: those metrics are None, no error
+    m = Model(two_body_clutch(0.2, 1.0, capacity=50.0))
+    r = simulate(m, np.array([100.0, 0.0]), {"torque1": 20.0}, t_end=0.5)
+    out = engagement_metrics(r)
+    assert out["final_vehicle_speed_kmh"] is None and out["n_events"] == len(r.events)

@@ -135,3 +135,29 @@ def test_load_scenario_takes_a_parameter_set_name_and_checks_types() -> None:
         load_scenario("paper-start", params=5)  # type: ignore[arg-type]
     with pytest.raises(ScenarioError, match="source = None: give a scenario name or a path"):
         load_scenario(None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "match"),
+    [
+        (
+            ("initial", "engine_speed_rpm"),
+            -100.0,
+            r"initial.engine_speed_rpm = -100.0: must be >= 0",
+        ),
+        (("initial", "throttle"), 5.0, r"initial.throttle = 5.0: must lie in \[0, 1\]"),
+        (("slope_percent",), 1e300, r"slope_percent = 1e\+300: out of range"),
+        (("name",), 5, "name = 5: must be a string"),
+        (("description",), 5, "description = 5: must be a string"),
+    ],
+)
+def test_scenario_file_errors_name_the_file_key(
+    path: tuple[str, ...], value: object, match: str
+) -> None:
+    d = ENGAGE.to_dict()
+    target = d
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    with pytest.raises(ScenarioError, match=match):
+        scenario_from_dict(d)
