@@ -131,6 +131,8 @@ def run_simulation(
     from .simulate import InputRangeError, SimulationOptions, ZenoError
 
     tic = time.perf_counter()
+    if not isinstance(plots, bool):
+        raise InputError(f"plots = {plots!r}: must be True or False")
     out = Path(out)
     _check_out_dir(out)
     try:

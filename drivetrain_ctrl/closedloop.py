@@ -60,7 +60,7 @@ class Actuator:
     def __post_init__(self) -> None:
         for nm in ("omega", "delta"):
             v = getattr(self, nm)
-            if not (math.isfinite(v) and v > 0):
+            if not (is_finite_real(v) and v > 0):
                 raise ValueError(f"Actuator.{nm} = {v!r}: must be a finite number > 0")
 
     def lti(self) -> control.StateSpace:

@@ -436,10 +436,11 @@ def _check_fraction(name: str, v: float) -> float:
     return v
 
 
-def _check_brake(v: object) -> float:
+def _check_brake(v: object, dt: Drivetrain) -> float:
     br = _finite("brake", v)
-    if br < 0:
-        raise ValueError(f"brake = {v!r} [N m]: a brake capacity must be >= 0")
+    hi = dt.params.brake.capacity_max
+    if not 0.0 <= br <= hi:
+        raise ValueError(f"brake = {v!r} [N m]: must lie in [0, brake.capacity_max = {hi!r}]")
     return br
 
 
@@ -474,11 +475,15 @@ def slip_operating_point(
     time to lock. Raises ValueError if the slip speed is zero or the clutch carries no torque, if
     ``x_c`` is outside the pedal map's knots or ``brake`` < 0.
     """
+    if not isinstance(drivetrain, Drivetrain):
+        raise TypeError(f"slip_operating_point: drivetrain = {drivetrain!r}: must be a Drivetrain")
     we = _finite("omega_engine", omega_engine)
+    if we < 0.0:
+        raise ValueError(f"omega_engine = {omega_engine!r} rad/s: must be >= 0")
     wd = _finite("omega_driven", omega_driven)
     xc = _check_pedal(drivetrain, x_c)
     th = _check_fraction("throttle", throttle)
-    br = _check_brake(brake)
+    br = _check_brake(brake, drivetrain)
     if we == wd:
         raise ValueError(
             f"omega_engine = omega_driven = {we!r} rad/s: no slip (use locked_trim for a locked "
@@ -573,7 +578,7 @@ def locked_trim(
     m = dt.model
     v = kmh_to_m_s(vk)
     xc = float(dt.params.clutch.pedal_map.x[0]) if x_c is None else _check_pedal(dt, x_c)
-    br = _check_brake(brake)
+    br = _check_brake(brake, dt)
     w = dt.vehicle_speed_to_primary(v)
     x0 = dt.rigid_state(omega_engine=w, v_vehicle=v, throttle=0.3)
     u0 = m.inputs(throttle=0.3, pedal=xc, brake=br)

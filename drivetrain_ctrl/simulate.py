@@ -431,6 +431,11 @@ def _raise_non_finite(model: Model, T: F64, Y: F64, nx: int, nxs: int) -> None:
 
 
 def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
+    if not isinstance(inputs, Mapping):
+        raise TypeError(
+            f"inputs = {inputs!r}: must be a mapping input name -> Signal or number "
+            f"(the model's inputs: {model.input_names})"
+        )
     unknown = set(inputs) - set(model.input_names)
     if unknown:
         raise KeyError(

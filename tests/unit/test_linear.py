@@ -669,3 +669,23 @@ def test_operating_point_from_result_rejects_another_drivetrain() -> None:
             L.operating_point_from_result(res, 0.3, drivetrain=other)
     with pytest.raises(ValueError, match=r"t = 9.0 s: outside the trajectory \[0.0, 0.5\] s"):
         L.operating_point_from_result(res, 9.0)
+
+
+def test_slip_operating_point_checks_the_physical_ranges() -> None:
+    with pytest.raises(ValueError, match=r"omega_engine = -100.0 rad/s: must be >= 0"):
+        L.slip_operating_point(
+            reduced_model(P), omega_engine=-100.0, omega_driven=80.0, x_c=XC, throttle=0.5
+        )
+    with pytest.raises(
+        ValueError,
+        match=r"brake = 1000000000.0 \[N m\]: must lie in \[0, brake.capacity_max = 3000.0\]",
+    ):
+        _slip(brake=1e9)
+    with pytest.raises(TypeError, match="drivetrain = 'reduced': must be a Drivetrain"):
+        L.slip_operating_point(
+            "reduced",
+            omega_engine=170.0,
+            omega_driven=80.0,
+            x_c=XC,
+            throttle=0.5,  # type: ignore[arg-type]
+        )
