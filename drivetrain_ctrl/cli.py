@@ -55,6 +55,15 @@ __all__ = ["main", "run_simulation"]
 PROG = "drivetrain-ctrl"
 MODELS = ("full", "reduced")
 DEFAULT_PARAMS = DEFAULT_SET
+#: the files ``run_simulation`` writes: four tables, then the two plots (with ``plots``)
+SIMULATION_FILES: tuple[str, ...] = (
+    "trajectory.csv",
+    "events.csv",
+    "metrics.json",
+    "timing.json",
+    "overview.png",
+    "energy.png",
+)
 
 
 def _controller_names(sep: str) -> str:
@@ -204,7 +213,7 @@ def run_simulation(
     record = json_ready(record)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        files = ["trajectory.csv", "events.csv", "metrics.json", "timing.json"]
+        files = list(SIMULATION_FILES[:4])
         res.to_dataframe().to_csv(out / "trajectory.csv", index=False, lineterminator="\n")
         res.events_dataframe().to_csv(out / "events.csv", index=False, lineterminator="\n")
         _write_json(out / "metrics.json", record)
@@ -213,7 +222,7 @@ def run_simulation(
 
             plot_simulation(res, out / "overview.png")
             plot_energy(res, out / "energy.png")
-            files += ["overview.png", "energy.png"]
+            files += SIMULATION_FILES[4:]
         timing = {
             "wall_time_s": float(res.stats.get("wall_time_s", math.nan)),
             "kernel_load_s": load_s,
@@ -227,17 +236,6 @@ def run_simulation(
     except OSError as exc:
         raise RunError(f"cannot write outputs to {out}: {exc}") from None
     return {"metrics": record, "timing": timing, "files": files}
-
-
-#: the files ``run_simulation`` writes (with plots)
-SIMULATION_FILES: tuple[str, ...] = (
-    "trajectory.csv",
-    "events.csv",
-    "metrics.json",
-    "timing.json",
-    "overview.png",
-    "energy.png",
-)
 
 
 def _check_out_dir(out: Path) -> None:

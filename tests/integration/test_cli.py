@@ -8,18 +8,13 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from drivetrain_ctrl.cli import main
+from drivetrain_ctrl.cli import SIMULATION_FILES, main
 from drivetrain_ctrl.metrics import METRIC_KEYS
 from drivetrain_ctrl.params import PARAMETER_SETS_DIR
 
-FILES = (
-    "trajectory.csv",
-    "events.csv",
-    "metrics.json",
-    "timing.json",
-    "overview.png",
-    "energy.png",
-)
+FILES = SIMULATION_FILES
+# the outputs the issue names are among them
+assert {"trajectory.csv", "events.csv", "metrics.json", "timing.json", "overview.png"} <= set(FILES)
 
 
 def simulate_reduced(scenario: str, out: Path, *extra: str) -> int:
