@@ -395,6 +395,12 @@ def _step_run(sc: Scenario, dtr: Drivetrain, op: OperatingPoint, c: Any, H: floa
 
 def _nominal_step_run(sc: Scenario, dtr: Drivetrain, ctrl: Any, op: OperatingPoint) -> _StepRuns:
     H = min(STEP_HORIZON_S, sc.t_end - float(op.t or 0.0))
+    if not H > 0.0:
+        raise ValueError(
+            f"scenario {sc.name!r}: t_end = {sc.t_end!r} s leaves no time after the slip point at "
+            f"{float(op.t or 0.0):g} s (controller start + {SLIP_DELAY_S:g} s) for the step "
+            "responses: make t_end longer"
+        )
     # the controller state is matched to the pedal with the nominal reference in every run (the
     # step must reach the controller, not be absorbed into its initial state)
     c0 = _matched_controller(ctrl, op)
@@ -530,13 +536,13 @@ def build_report(
     controller: str | Path | ControllerSpec = "paper",
     params: str | Path | DrivetrainParams | None = None,
     model: str = "reduced",
-    scenario: str | Path = "paper-start",
+    scenario: str | Path | Scenario = "paper-start",
     out: str | Path,
 ) -> Report:
     """Build the report of ``controller`` (built-in name, TOML file or spec) on ``model``
     (``"reduced"`` / ``"full"``) with parameter set ``params`` (None: default; a name or TOML path:
-    :func:`~drivetrain_ctrl.params.load_params`) in ``scenario`` (a closed-loop scenario: name or
-    TOML file); writes ``data.json``, ``report.html`` and ``report.pdf`` into ``out`` (created).
+    :func:`~drivetrain_ctrl.params.load_params`) in ``scenario`` (a closed-loop scenario: name,
+    TOML file or :class:`~drivetrain_ctrl.scenarios.Scenario`); writes ``data.json``, ``report.html`` and ``report.pdf`` into ``out`` (created).
 
     Raises ValueError (ControllerError / ScenarioError) naming the argument for a bad controller,
     model, parameter set or scenario.

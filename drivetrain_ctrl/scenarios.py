@@ -520,9 +520,14 @@ def builtin_scenarios(params: DrivetrainParams | None = None) -> dict[str, Scena
     return {engage.name: engage, tip.name: tip, paper.name: paper}
 
 
-def load_scenario(source: str | Path, *, params: DrivetrainParams | None = None) -> Scenario:
+def load_scenario(
+    source: str | Path | Scenario, *, params: DrivetrainParams | str | Path | None = None
+) -> Scenario:
     """A built-in scenario by name (built for ``params``: a parameter set, or its name or TOML
-    file; the default parameter set if None), or a scenario TOML file."""
+    file; the default parameter set if None), a scenario TOML file, or a :class:`Scenario`
+    (returned as it is)."""
+    if isinstance(source, Scenario):
+        return source
     if isinstance(source, bool) or not isinstance(source, (str, Path)):
         raise ScenarioError(f"load_scenario: source = {source!r}: give a scenario name or a path")
     if isinstance(params, (str, Path)):

@@ -152,3 +152,13 @@ def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
     monkeypatch.setattr(ControllerSpec, "build", counting_build)
     R.build_report(controller="paper", out=tmp_path)
     assert calls == {"simulate": 1 + len(R.STEP_SIZES_RPM), "build": 1}
+
+
+def test_report_on_a_scenario_too_short_for_the_step_responses(tmp_path):
+    import dataclasses
+
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    sc = dataclasses.replace(load_scenario("paper-start"), name="short", t_end=0.6)
+    with pytest.raises(ValueError, match=r"scenario 'short': t_end = 0.6 s leaves no time"):
+        build_report(controller="paper", scenario=sc, model="reduced", out=tmp_path / "r")
