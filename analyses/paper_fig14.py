@@ -65,8 +65,12 @@ def checks(runs: dict[str, dict[str, Any]], controller: str) -> dict[str, bool]:
     }
 
 
-def main(quick: bool = False, out: Path = OUT) -> dict[str, Any]:
-    """Run the analysis; returns ``{controller: {"runs": {model: metrics}, "checks": {...}}}``."""
+def main(*, quick: bool = False, out: Path | str = OUT) -> dict[str, Any]:
+    """Run the analysis; returns ``{controller: {"runs": {model: metrics}, "checks": {...}}}``.
+    ``quick``: the paper's law only; ``out``: the output directory."""
+    if not isinstance(quick, bool):
+        raise TypeError(f"quick = {quick!r}: must be True or False")
+    out = Path(out)
     params = default_params()
     sc = load_scenario("paper-start", params=params)
     out.mkdir(parents=True, exist_ok=True)

@@ -26,6 +26,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 __all__ = [
     "PwlTable",
     "Spring",
@@ -45,13 +47,33 @@ BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
 
 
 def _is_number(value: object) -> bool:
-    return not isinstance(value, bool) and isinstance(value, (int, float))
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
+
+
+def _name(owner: str, field_: str, value: object) -> None:
+    """A name: a non-empty string."""
+    if not isinstance(value, str) or not value.strip():
+        raise ValueError(f"{owner}.{field_} = {value!r}: must be a non-empty string")
+
+
+def _seq(owner: str, field_: str, value: object) -> None:
+    """A tuple or list (of knots, names, elements)."""
+    if not isinstance(value, (tuple, list)):
+        raise TypeError(f"{owner}.{field_} = {value!r}: must be a tuple")
+
+
+def _of_type(owner: str, field_: str, value: object, cls: type, optional: bool = True) -> None:
+    if (value is None and optional) or isinstance(value, cls):
+        return
+    raise TypeError(
+        f"{owner}.{field_} = {value!r}: must be a {cls.__name__}{' or None' if optional else ''}"
+    )
 
 
 def _finite(
     owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False
 ) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if not _is_number(value):
         raise TypeError(f"{owner}.{name} must be a real number, got {value!r}")
     if not math.isfinite(value):
         raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
@@ -72,8 +94,13 @@ class PwlTable:
     name: str = "table"
 
     def __post_init__(self) -> None:
+        _seq(self.name, "x", self.x)
+        _seq(self.name, "y", self.y)
         if len(self.x) != len(self.y) or not self.x:
-            raise ValueError(f"{self.name}: x and y must be non-empty and of equal length")
+            raise ValueError(
+                f"{self.name}: x and y must be non-empty and of equal length, got {len(self.x)} "
+                f"x and {len(self.y)} y"
+            )
         for i, (a, b) in enumerate(zip(self.x, self.y, strict=True)):
             _finite(self.name, f"x[{i}]", a)
             _finite(self.name, f"y[{i}]", b)
@@ -114,8 +141,12 @@ class Spring:
     name: str = "spring"
 
     def __post_init__(self) -> None:
+        _seq(self.name, "x", self.x)
+        _seq(self.name, "y", self.y)
         if len(self.x) != len(self.y) or len(self.x) < 2:
             raise ValueError(f"{self.name}: needs at least two knots (x, y) of equal length")
+        _finite(self.name, "x[0]", self.x[0])
+        _finite(self.name, "y[0]", self.y[0])
         if self.x[0] != 0.0 or self.y[0] != 0.0:
             raise ValueError(
                 f"{self.name}: first knot must be (0, 0), got ({self.x[0]}, {self.y[0]})"
@@ -133,6 +164,7 @@ class Spring:
     def linear(cls, stiffness: float, *, backlash: float = 0.0, name: str = "spring") -> Spring:
         """Linear spring of ``stiffness`` [N m/rad or N/m] with half gap ``backlash``."""
         _finite(name, "stiffness", stiffness, lo=0.0, strict=True)
+        _finite(name, "backlash", backlash, lo=0.0)
         return cls((0.0, 1.0), (0.0, float(stiffness)), float(backlash), name)
 
     def torque(self, q: float) -> float:
@@ -171,16 +203,35 @@ class Friction:
     name: str = "friction"
 
     def __post_init__(self) -> None:
+        _name("Friction", "name", self.name)
         _finite(self.name, "scale", self.scale, lo=0.0)
         _finite(self.name, "static_ratio", self.static_ratio, lo=1.0)
+        if self.capacity_input is not None:
+            _name(self.name, "capacity_input", self.capacity_input)
+        _of_type(self.name, "capacity_table", self.capacity_table, PwlTable)
+        _of_type(self.name, "mu_table", self.mu_table, PwlTable)
         if self.capacity_table is not None and self.capacity_input is None:
             raise ValueError(f"{self.name}: capacity_table needs a capacity_input")
-        if self.mu_table is not None and self.mu_table.x[0] != 0.0:
+        if self.mu_table is not None:
+            if self.mu_table.x[0] != 0.0:
+                raise ValueError(
+                    f"{self.name}: mu_table must start at slip 0, got {self.mu_table.x[0]}"
+                )
+            if self.mu_table.y[0] != 1.0 or min(self.mu_table.y) < 0.0:
+                raise ValueError(
+                    f"{self.name}: mu_table.y = {self.mu_table.y!r}: a friction ratio is 1 at "
+                    "zero slip and never negative"
+                )
+        if (
+            not isinstance(self.mode_names, (tuple, list))
+            or len(self.mode_names) != 4
+            or not all(isinstance(n, str) and n.strip() for n in self.mode_names)
+            or len(set(self.mode_names)) != 4
+        ):
             raise ValueError(
-                f"{self.name}: mu_table must start at slip 0, got {self.mu_table.x[0]}"
+                f"{self.name}: mode_names = {self.mode_names!r}: must be 4 distinct non-empty "
+                "names (stuck, slip+, slip-, open)"
             )
-        if len(self.mode_names) != 4 or len(set(self.mode_names)) != 4:
-            raise ValueError(f"{self.name}: mode_names must be 4 distinct names")
 
 
 @dataclass(frozen=True, slots=True)
@@ -206,7 +257,11 @@ class Body:
     input_gain: float = 1.0
 
     def __post_init__(self) -> None:
+        _name("Body", "name", self.name)
         _finite(self.name, "inertia", self.inertia, lo=0.0, strict=True)
+        _of_type(self.name, "ground_friction", self.ground_friction, Friction)
+        if self.torque_input is not None:
+            _name(self.name, "torque_input", self.torque_input)
         _finite(self.name, "viscous", self.viscous, lo=0.0)
         _finite(self.name, "quadratic", self.quadratic, lo=0.0)
         _finite(self.name, "load", self.load)
@@ -235,8 +290,11 @@ class Coupling:
     friction: Friction | None = None
 
     def __post_init__(self) -> None:
+        _name("Coupling", "name", self.name)
         _finite(self.name, "ratio", self.ratio, lo=0.0, strict=True)
         _finite(self.name, "damper", self.damper, lo=0.0)
+        _of_type(self.name, "spring", self.spring, Spring)
+        _of_type(self.name, "friction", self.friction, Friction)
         if self.spring is None and self.damper == 0.0 and self.friction is None:
             raise ValueError(f"{self.name}: a coupling needs a spring, a damper or a friction")
 
@@ -257,8 +315,12 @@ class LaggedSource:
     gain_table: PwlTable | None = None
 
     def __post_init__(self) -> None:
+        _name("LaggedSource", "name", self.name)
+        _name(self.name, "body", self.body)
+        _name(self.name, "input", self.input)
         _finite(self.name, "tau", self.tau, lo=0.0, strict=True)
         _finite(self.name, "gain", self.gain)
+        _of_type(self.name, "gain_table", self.gain_table, PwlTable)
 
 
 @dataclass(frozen=True, slots=True)
@@ -283,6 +345,17 @@ class Chain:
     )
 
     def __post_init__(self) -> None:
+        for fld, cls in (("bodies", Body), ("couplings", Coupling), ("sources", LaggedSource)):
+            seq = getattr(self, fld)
+            _seq("Chain", fld, seq)
+            for i, el in enumerate(seq):
+                if not isinstance(el, cls):
+                    raise TypeError(f"Chain.{fld}[{i}] = {el!r}: must be a {cls.__name__}")
+        _seq("Chain", "inputs", self.inputs)
+        for i, nm in enumerate(self.inputs):
+            _name("Chain", f"inputs[{i}]", nm)
+        if len(set(self.inputs)) != len(self.inputs):
+            raise ValueError(f"Chain.inputs = {self.inputs!r}: names must not repeat")
         if len(self.bodies) < 1:
             raise ValueError("Chain needs at least one body")
         if len(self.couplings) != len(self.bodies) - 1:
@@ -293,6 +366,19 @@ class Chain:
         names = [b.name for b in self.bodies] + [c.name for c in self.couplings]
         if len(set(names)) != len(names):
             raise ValueError(f"Chain: body and coupling names must be unique, got {names}")
+        # names that label states (sources) and modes (friction elements, backlashes) must not
+        # collide within their kind: each names a result column
+        sources = [s.name for s in self.sources]
+        moded = [b.ground_friction.name for b in self.bodies if b.ground_friction is not None]
+        moded += [c.friction.name for c in self.couplings if c.friction is not None]
+        moded += [c.name for c in self.couplings if c.spring is not None and c.spring.backlash]
+        for what, labels in (("sources", sources), ("friction elements and backlashes", moded)):
+            dup = sorted({n for n in labels if labels.count(n) > 1})
+            if dup:
+                raise ValueError(
+                    f"Chain: the names {dup} are used by more than one of the {what} (each names "
+                    "a state or a mode and its result column)"
+                )
         body_names = {b.name for b in self.bodies}
         used: list[tuple[str, str | None]] = []
         for b in self.bodies:
@@ -355,9 +441,12 @@ def two_body_clutch(
     ``capacity`` is a constant [N m] or the name of an input giving it.
     """
     if isinstance(capacity, str):
+        if capacity == "torque1":
+            raise ValueError("capacity = 'torque1': that is the drive torque's input; name another")
         fr = Friction(capacity_input=capacity, static_ratio=static_ratio, name="clutch")
         inputs: Sequence[str] = (capacity, "torque1")
     else:
+        _finite("two_body_clutch", "capacity", capacity, lo=0.0)
         fr = Friction(scale=float(capacity), static_ratio=static_ratio, name="clutch")
         inputs = ("torque1",)
     return Chain(

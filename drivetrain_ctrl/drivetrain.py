@@ -53,6 +53,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .chain import Body, Chain, Coupling, Friction, LaggedSource, PwlTable, Spring
+from .loading import is_finite_real
 from .model import Model
 from .params import DrivetrainParams
 from .units import GRAVITY
@@ -79,14 +80,18 @@ def _table(t: object, name: str) -> PwlTable:
 
 
 def _check_gear(p: DrivetrainParams, gear: int) -> None:
+    if not isinstance(p, DrivetrainParams):
+        raise TypeError(f"params = {p!r}: must be a DrivetrainParams (e.g. default_params())")
     n = len(p.gearbox.gear_ratios)
-    if isinstance(gear, bool) or not isinstance(gear, int) or not 1 <= gear <= n:
+    if isinstance(gear, bool) or not isinstance(gear, (int, np.integer)) or not 1 <= gear <= n:
         raise ValueError(f"gear = {gear!r}: must be an integer in 1..{n}")
 
 
 def _check_slope(slope: float) -> float:
+    if not is_finite_real(slope):
+        raise ValueError(f"slope = {slope!r} rad: must be a finite number")
     s = float(slope)
-    if not math.isfinite(s) or abs(s) >= math.pi / 2:
+    if abs(s) >= math.pi / 2:
         raise ValueError(f"slope = {slope!r} rad: must be finite and within (-pi/2, pi/2)")
     return s
 
@@ -326,7 +331,7 @@ class Drivetrain:
         chain = (full_chain if kind == "full" else reduced_chain)(params, gear=gear, slope=slope)
         object.__setattr__(self, "model", Model(chain))
         object.__setattr__(self, "params", params)
-        object.__setattr__(self, "gear", gear)
+        object.__setattr__(self, "gear", int(gear))
         object.__setattr__(self, "slope", float(slope))
         object.__setattr__(self, "kind", kind)
 
@@ -343,7 +348,9 @@ class Drivetrain:
 
     def vehicle_speed_to_primary(self, v: float) -> float:
         """Primary-shaft speed [rad/s] that matches vehicle speed ``v`` [m/s] with no slip."""
-        return v * self.tau_t / self.params.driveline.R_p
+        if not is_finite_real(v):
+            raise ValueError(f"v = {v!r} [m/s]: must be a finite number")
+        return float(v) * self.tau_t / self.params.driveline.R_p
 
     def rigid_state(
         self,
@@ -355,7 +362,18 @@ class Drivetrain:
     ) -> NDArray[np.float64]:
         """A state with every shaft turning at the speed of the vehicle (no slip) except the
         engine at ``omega_engine`` [rad/s], springs preloaded to ``twist_torque`` [N m, primary
-        frame] (negative: coasting, backlash in negative contact), engine lag at ``throttle``."""
+        frame] (negative: coasting, backlash in negative contact), engine lag at ``throttle``
+        (in [0, 1])."""
+        for nm, v in (
+            ("omega_engine", omega_engine),
+            ("v_vehicle", v_vehicle),
+            ("throttle", throttle),
+            ("twist_torque", twist_torque),
+        ):
+            if not is_finite_real(v):
+                raise ValueError(f"rigid_state: {nm} = {v!r}: must be a finite number")
+        if not 0.0 <= throttle <= 1.0:
+            raise ValueError(f"rigid_state: throttle = {throttle!r}: must lie in [0, 1]")
         m = self.model
         x = np.zeros(m.nx)
         R = self.params.driveline.R_p

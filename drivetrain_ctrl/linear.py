@@ -631,6 +631,11 @@ def locked_trim(
         + vp.M_v * GRAVITY * math.sin(dt.slope)
     )
     T_road = F_road * dt.params.driveline.R_p / dt.tau_t
+    if not math.isfinite(T_road):
+        raise ValueError(
+            f"locked_trim: vehicle_speed_kmh = {vk!r}: no locked steady state there (the road "
+            "load is not finite)"
+        )
     p = np.zeros(1 + len(q_idx))
     p[0] = 0.3
     x_guess = dt.rigid_state(

@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from . import kernels as K
 from .chain import BACKLASH_MODES, Chain, Friction, PwlTable, Spring
+from .loading import is_finite_real
 
 __all__ = ["Model", "Mode", "PogForm", "TableInfo", "FrictionInfo"]
 
@@ -36,6 +37,14 @@ class Mode:
 
     fm: tuple[int, ...]
     reg: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        for nm in ("fm", "reg"):
+            v = getattr(self, nm)
+            if not isinstance(v, tuple) or not all(
+                isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in v
+            ):
+                raise TypeError(f"Mode.{nm} = {v!r}: must be a tuple of integer codes")
 
     def arrays(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         return np.array(self.fm, dtype=np.int64), np.array(self.reg, dtype=np.int64)
@@ -178,6 +187,8 @@ class Model:
     )
 
     def __init__(self, chain: Chain) -> None:
+        if not isinstance(chain, Chain):
+            raise TypeError(f"Model(chain = {chain!r}): must be a Chain")
         self.chain = chain
         bodies, couplings = chain.bodies, chain.couplings
         n, m = len(bodies), len(couplings)
@@ -262,9 +273,6 @@ class Model:
                     fr.capacity_input is None,
                 )
             )
-        fnames = [fi.name for fi in finfo]
-        if len(set(fnames)) != len(fnames):
-            raise ValueError(f"friction element names must be unique, got {fnames}")
         l_table = [-1] * len(chain.sources)
         for j, s in enumerate(chain.sources):
             if s.gain_table is not None:
@@ -376,14 +384,55 @@ class Model:
         )
 
     def inputs(self, **values: float) -> F64:
-        """Input vector from keyword values; every input must be given, unknown names rejected."""
+        """Input vector from keyword values; every input must be given (a finite number), unknown
+        names rejected. (The simulator checks the physical ranges, :attr:`input_ranges`.)"""
         unknown = set(values) - set(self.input_names)
         if unknown:
             raise KeyError(f"unknown input(s) {sorted(unknown)}; inputs: {self.input_names}")
         missing = [n for n in self.input_names if n not in values]
         if missing:
             raise KeyError(f"missing input(s) {missing}")
+        for n in self.input_names:
+            if not is_finite_real(values[n]):
+                raise ValueError(f"input {n} = {values[n]!r}: must be a finite number")
         return np.array([float(values[n]) for n in self.input_names])
+
+    def check_mode(self, mode: Mode) -> None:
+        """Raise if ``mode`` is not a mode of this model: a :class:`Mode` with one code per
+        friction element (0..3) and one region per table (within the table's pieces)."""
+        if not isinstance(mode, Mode):
+            raise TypeError(f"mode = {mode!r}: must be a Mode (e.g. from Model.decide)")
+        if len(mode.fm) != len(self.frictions):
+            raise ValueError(
+                f"Mode.fm has {len(mode.fm)} codes for {len(self.frictions)} friction elements "
+                f"{[f.name for f in self.frictions]}"
+            )
+        if len(mode.reg) != len(self.tables):
+            raise ValueError(
+                f"Mode.reg has {len(mode.reg)} regions for {len(self.tables)} tables "
+                f"{[t.name for t in self.tables]}"
+            )
+        for fi, c in zip(self.frictions, mode.fm, strict=True):
+            if not 0 <= c <= 3:
+                raise ValueError(f"Mode.fm code {c} for {fi.name!r}: must be 0..3 {fi.mode_names}")
+        for k, (ti, r) in enumerate(zip(self.tables, mode.reg, strict=True)):
+            n_pieces = int(self.data.t_nb[k]) + 1
+            if not 0 <= r < n_pieces:
+                raise ValueError(
+                    f"Mode.reg[{k}] = {r} for table {ti.name!r}: must be 0..{n_pieces - 1}"
+                )
+
+    def _check_x(self, x: object) -> F64:
+        xa = np.asarray(x, dtype=float)
+        if xa.shape != (self.nx,):
+            raise ValueError(f"state x must have shape ({self.nx},), got {xa.shape}")
+        return xa
+
+    def _check_u(self, u: object) -> F64:
+        ua = np.asarray(u, dtype=float)
+        if ua.shape != (len(self.input_names),):
+            raise ValueError(f"inputs u must have shape ({len(self.input_names)},), got {ua.shape}")
+        return ua
 
     def _mass_matrix(self) -> F64:
         d = np.ones(self.nx)
@@ -393,6 +442,7 @@ class Model:
     # -- modes -----------------------------------------------------------------------------------
     def mode_names(self, mode: Mode) -> dict[str, str]:
         """Named modes of every friction element and every backlash (``{element: mode}``)."""
+        self.check_mode(mode)
         out = {fi.name: fi.mode_names[c] for fi, c in zip(self.frictions, mode.fm, strict=True)}
         for ti, r in zip(self.tables, mode.reg, strict=True):
             if ti.region_names is not None:
@@ -401,10 +451,13 @@ class Model:
 
     def decide(self, x: F64, u: F64, *, tol: float = 1e-9) -> tuple[Mode, F64]:
         """Consistent mode at state ``x`` and inputs ``u`` (and ``x`` projected onto it)."""
-        x = np.array(x, dtype=float)
+        x = self._check_x(x).copy()
+        ua = self._check_u(u)
+        if not (is_finite_real(tol) and tol > 0):
+            raise ValueError(f"decide: tol = {tol!r} [rad/s or m/s]: must be a finite number > 0")
         fm = np.full(len(self.frictions), K.OPEN, dtype=np.int64)
         reg = np.zeros(len(self.tables), dtype=np.int64)
-        r = K.decide_modes(self.data, x, np.asarray(u, dtype=float), fm, reg, tol)
+        r = K.decide_modes(self.data, x, ua, fm, reg, float(tol))
         if r == K.DM_TOO_MANY:
             raise ValueError(
                 f"more than {K.DM_MAX_CANDIDATES} friction elements are at zero relative speed "
@@ -416,6 +469,8 @@ class Model:
     def mode_from_state(self, x: F64, u: F64, friction_modes: Mapping[str, str]) -> Mode:
         """Mode with the given friction mode names (others: by the sign of their speed) and the
         table regions of ``x``, ``u``."""
+        x = self._check_x(x)
+        u = self._check_u(u)
         fm = np.zeros(len(self.frictions), dtype=np.int64)
         unknown = set(friction_modes) - {f.name for f in self.frictions}
         if unknown:
@@ -447,12 +502,9 @@ class Model:
     def _arrays(
         self, x: F64, u: F64, mode: Mode
     ) -> tuple[F64, F64, NDArray[np.int64], NDArray[np.int64]]:
-        x = np.asarray(x, dtype=float)
-        u = np.asarray(u, dtype=float)
-        if x.shape != (self.nx,):
-            raise ValueError(f"state x must have shape ({self.nx},), got {x.shape}")
-        if u.shape != (len(self.input_names),):
-            raise ValueError(f"inputs u must have shape ({len(self.input_names)},), got {u.shape}")
+        x = self._check_x(x)
+        u = self._check_u(u)
+        self.check_mode(mode)
         fm, reg = mode.arrays()
         return x, u, fm, reg
 
@@ -495,7 +547,7 @@ class Model:
     # -- energy ----------------------------------------------------------------------------------
     def stored_energy(self, x: F64) -> float:
         """Stored energy [J]: kinetic + elastic (springs, damper, backlash) + potential (slope)."""
-        return float(K.stored_energy(self.data, np.asarray(x, dtype=float)))
+        return float(K.stored_energy(self.data, self._check_x(x)))
 
     def power_names(self) -> tuple[str, ...]:
         """Names of the dissipation terms returned by :meth:`powers`."""
@@ -515,6 +567,7 @@ class Model:
     # -- POG form ----------------------------------------------------------------------------------
     def speed_basis(self, mode: Mode) -> F64:
         """Basis ``N`` (n, n - k) of the speeds allowed by the stuck elements (``omega = N zeta``)."""
+        self.check_mode(mode)
         fm = np.array(mode.fm, dtype=np.int64)
         which = (fm == K.STUCK).astype(np.int64)
         G = K.constraint_rows(self.data, fm, which)

@@ -67,10 +67,14 @@ def _new_figure(nrows: int, height_ratios: list[float], size: tuple[float, float
 
 
 def _save(fig: Figure, path: str | Path | None) -> None:
-    if path is not None:
-        p = Path(path)
-        p.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(p, dpi=DPI, format="png")
+    """Save ``fig`` as a PNG to ``path`` (which must end in ``.png``; None: do not save)."""
+    if path is None:
+        return
+    if not isinstance(path, (str, Path)) or Path(path).suffix.lower() != ".png":
+        raise ValueError(f"path = {path!r}: give a file name ending in .png")
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(p, dpi=DPI, format="png")
 
 
 def _to_primary_factor(model: Model, body: int, primary: int) -> float:
@@ -645,6 +649,15 @@ def write_text_pdf(
     """A PDF of text pages then figures. ``lines``: ``(style, text)`` with style ``h1``, ``h2``,
     ``p`` (paragraph) or ``t`` (monospace table row), already wrapped; A4 pages of ``per_page``
     lines; no creation date (the same input gives the same file)."""
+    if isinstance(per_page, bool) or not isinstance(per_page, int) or per_page < 1:
+        raise ValueError(f"write_text_pdf: per_page = {per_page!r}: must be an integer >= 1")
+    styles = {"h1", "h2", "p", "t"}
+    for i, item in enumerate(lines):
+        if not (isinstance(item, tuple) and len(item) == 2 and item[0] in styles):
+            raise ValueError(
+                f"write_text_pdf: lines[{i}] = {item!r}: must be (style, text) with style one "
+                f"of {sorted(styles)}"
+            )
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.figure import Figure
 

@@ -44,3 +44,11 @@ def test_paper_fig14_quick(tmp_path: Path) -> None:
         assert m["engagement_time_s"] == pytest.approx(t_lock - 0.5, abs=1e-8)
     assert abs(locks[0] - locks[1]) <= 0.15, locks  # the two models within 0.15 s
     assert len(data["paper"]["checks"]) == 5 and all(data["paper"]["checks"].values())
+
+
+def test_paper_fig14_options_are_keyword_only_and_checked(tmp_path: Path) -> None:
+    mod = _load("paper_fig14")
+    with pytest.raises(TypeError):
+        mod.main(True, tmp_path)
+    with pytest.raises(TypeError, match="quick = 'no': must be True or False"):
+        mod.main(quick="no", out=tmp_path)

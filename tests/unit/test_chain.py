@@ -110,12 +110,11 @@ def test_names_unique() -> None:
 
 
 def test_friction_names_unique_in_a_model() -> None:
-    ch = Chain(
-        (Body("a", 1.0, ground_friction=Friction(name="f")), Body("b", 1.0)),
-        (Coupling("c", friction=Friction(name="f")),),
-    )
-    with pytest.raises(ValueError, match="friction element names must be unique"):
-        Model(ch)
+    with pytest.raises(ValueError, match=r"the names \['f'\] are used by more than one of the fr"):
+        Chain(
+            (Body("a", 1.0, ground_friction=Friction(name="f")), Body("b", 1.0)),
+            (Coupling("c", friction=Friction(name="f")),),
+        )
 
 
 # -- Spring ---------------------------------------------------------------------------------------
@@ -270,3 +269,113 @@ def test_input_units_are_checked_and_reach_the_model_and_dataframe() -> None:
     assert m.input_units == ("N m", "")
     df = simulate(m, [1.0, 0.0], {"T": 2.0, "cap": 5.0}, t_end=0.1).to_dataframe()
     assert "input_T [N m]" in df.columns and "input_cap" in df.columns
+
+
+# -- bad input: construction errors name the field ------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("make", "exc", "match"),
+    [
+        (lambda: Coupling("c", spring=1000.0), TypeError, r"c.spring = 1000.0: must be a Spring"),
+        (lambda: Body("a", 1.0, ground_friction=5.0), TypeError, "a.ground_friction = 5.0"),
+        (lambda: Friction(mu_table=5), TypeError, "friction.mu_table = 5: must be a PwlTable"),
+        (lambda: LaggedSource("s", "a", "u", 0.1, gain_table=3), TypeError, "s.gain_table = 3"),
+        (lambda: Chain((1.0, 2.0), ()), TypeError, r"Chain.bodies\[0\] = 1.0: must be a Body"),
+        (lambda: Chain(bodies(1), (), inputs="thr"), TypeError, "Chain.inputs = 'thr'"),
+        (lambda: Chain(bodies(1), (), inputs=("u", "u")), ValueError, "must not repeat"),
+        (lambda: Chain(bodies(1), (), inputs=("",)), ValueError, r"Chain.inputs\[0\] = ''"),
+        (lambda: Body("", 1.0), ValueError, "Body.name = ''"),
+        (lambda: Body(None, 1.0), ValueError, "Body.name = None"),
+        (lambda: PwlTable(None, (1.0,)), TypeError, "table.x = None: must be a tuple"),
+        (lambda: PwlTable((0.0, 1.0), (1.0,)), ValueError, "got 2 x and 1 y"),
+        (lambda: Spring.linear(100.0, backlash=True), TypeError, "backlash must be a real number"),
+        (lambda: Friction(mode_names="abcd"), ValueError, "mode_names = 'abcd'"),
+        (
+            lambda: Friction(mu_table=PwlTable((0.0, 1.0), (1.0, -2.0))),
+            ValueError,
+            "1 at zero slip and never negative",
+        ),
+        (lambda: two_body_clutch(0.1, 0.2, capacity=True), TypeError, "capacity must be a real"),
+        (lambda: two_body_clutch(0.1, 0.2, capacity="torque1"), ValueError, "capacity = 'torque1'"),
+        (
+            lambda: Chain(
+                (Body("a", 1.0), Body("b", 1.0)),
+                (Coupling("c", damper=1.0),),
+                (LaggedSource("s", "a", "u", 0.1), LaggedSource("s", "b", "u", 0.1)),
+                inputs=("u",),
+            ),
+            ValueError,
+            r"the names \['s'\] are used by more than one of the sources",
+        ),
+        (
+            lambda: Chain(
+                (Body("a", 1.0, ground_friction=Friction(name="gear")), Body("b", 1.0)),
+                (Coupling("gear", spring=Spring.linear(100.0, backlash=0.01)),),
+            ),
+            ValueError,
+            r"\['gear'\] are used by more than one of the friction elements and backlashes",
+        ),
+    ],
+)
+def test_bad_chain_elements_name_the_field(make: object, exc: type, match: str) -> None:
+    with pytest.raises(exc, match=match):
+        make()  # type: ignore[operator]
+
+
+def test_numpy_numbers_are_numbers() -> None:
+    assert Body("a", np.int64(2)).inertia == 2
+    assert Spring.linear(np.float32(100.0)).y[1] == pytest.approx(100.0)
+
+
+def test_model_checks_modes_and_shapes() -> None:
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.model import Mode
+    from drivetrain_ctrl.params import default_params
+
+    dt = Drivetrain(default_params())
+    m = dt.model
+    x = dt.rigid_state(omega_engine=100.0, v_vehicle=3.0, throttle=0.3)
+    u = m.inputs(throttle=0.3, pedal=0.05, brake=0.0)
+    mode, _ = m.decide(x, u)
+    nt = len(mode.reg)
+    with pytest.raises(ValueError, match=r"Mode.reg\[0\] = 1000000000 for table"):
+        m.rhs(x, u, Mode(mode.fm, (10**9,) * nt))  # was a segmentation fault
+    with pytest.raises(ValueError, match="Mode.fm has 1 codes for 6 friction elements"):
+        m.powers(x, u, Mode((0,), mode.reg))
+    with pytest.raises(ValueError, match=r"Mode.fm code 7 for 'clutch'"):
+        m.mode_names(Mode((7, *mode.fm[1:]), mode.reg))
+    with pytest.raises(TypeError, match="Mode.fm = .*must be a tuple of integer codes"):
+        Mode(("stuck",), ())
+    with pytest.raises(TypeError, match="mode = None: must be a Mode"):
+        m.jacobian(x, u, None)  # type: ignore[arg-type]
+    for fn in (lambda: m.decide(x[:3], u), lambda: m.decide(x, np.zeros(0))):
+        with pytest.raises(ValueError, match="must have shape"):
+            fn()
+    with pytest.raises(ValueError, match=r"state x must have shape \(13,\)"):
+        m.stored_energy(np.array([1.0, 2.0, 3.0]))
+    with pytest.raises(ValueError, match="decide: tol = -1"):
+        m.decide(x, u, tol=-1)
+    with pytest.raises(ValueError, match="input throttle = 'a': must be a finite number"):
+        m.inputs(throttle="a", pedal=0.05, brake=0.0)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="Model.chain = 'chain'|Model\\(chain = 'chain'\\)"):
+        Model("chain")  # type: ignore[arg-type]
+
+
+def test_drivetrain_arguments_are_checked() -> None:
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.params import default_params
+
+    p = default_params()
+    with pytest.raises(TypeError, match="params = None: must be a DrivetrainParams"):
+        Drivetrain(None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="slope = True rad: must be a finite number"):
+        Drivetrain(p, slope=True)  # type: ignore[arg-type]
+    assert Drivetrain(p, gear=np.int64(2)).gear == 2
+    dt = Drivetrain(p)
+    with pytest.raises(ValueError, match="rigid_state: omega_engine = None"):
+        dt.rigid_state(omega_engine=None, v_vehicle=0.0)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"rigid_state: throttle = 2.0: must lie in \[0, 1\]"):
+        dt.rigid_state(omega_engine=100.0, v_vehicle=0.0, throttle=2.0)
+    with pytest.raises(ValueError, match="v = nan"):
+        dt.vehicle_speed_to_primary(float("nan"))

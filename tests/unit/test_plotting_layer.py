@@ -89,3 +89,25 @@ def test_plot_functions_name_bad_input() -> None:
         plot_root_locus([], parameter="k", unit="-")
     with pytest.raises(ValueError, match=r"bode\['L'\] has 2 magnitudes and 3 phases for 3"):
         plot_loop([1.0, 2.0, 3.0], {"L": ([0.0, 1.0], [0.0, 1.0, 2.0])}, title="t")
+
+
+def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> None:
+    """A plot never overwrites a file of another kind (e.g. a CSV) with PNG bytes."""
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.plotting import write_text_pdf
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    res = load_scenario("tip-in").run(Drivetrain(default_params(), kind="reduced"), t_end=0.2)
+    data = tmp_path / "data.csv"
+    data.write_text("keep", encoding="utf-8")
+    for bad in (data, tmp_path / "x.pdf", 123):
+        with pytest.raises(ValueError, match="give a file name ending in .png"):
+            res.plot(bad)
+    assert data.read_text(encoding="utf-8") == "keep"
+    res.plot(tmp_path / "ok.png")
+    assert (tmp_path / "ok.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="per_page = 0"):
+        write_text_pdf([("p", "hi")], [], tmp_path / "t.pdf", per_page=0)
+    with pytest.raises(ValueError, match=r"lines\[0\] = \('x', 'hi'\)"):
+        write_text_pdf([("x", "hi")], [], tmp_path / "t.pdf")
