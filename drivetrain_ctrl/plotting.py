@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .loading import is_finite_real
 from .units import RPM_TO_RAD_S
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -361,12 +362,29 @@ def plot_engagement(
     """
     from matplotlib.figure import Figure
 
+    if not isinstance(runs, (list, tuple)) or not all(
+        isinstance(r, tuple) and len(r) == 2 and isinstance(r[0], str) and hasattr(r[1], "model")
+        for r in runs
+    ):
+        raise ValueError(
+            f"plot_engagement: runs = {runs!r:.80}: give a list of (label, SimulationResult) pairs"
+        )
     ncol = len(runs)
     if ncol == 0:
         raise ValueError("plot_engagement: runs is empty; give (label, SimulationResult) pairs")
     if lockups is not None and len(lockups) != ncol:
         raise ValueError(
             f"plot_engagement: lockups has {len(lockups)} entries for {ncol} runs (one per run)"
+        )
+    if lockups is not None:
+        for k, tl in enumerate(lockups):
+            if tl is not None and not is_finite_real(tl):
+                raise ValueError(
+                    f"plot_engagement: lockups[{k}] = {tl!r}: a lock-up time [s] or None"
+                )
+    if reference is not None and not callable(reference):
+        raise ValueError(
+            f"plot_engagement: reference = {reference!r}: a Signal (omega_r(t) [rad/s]) or None"
         )
     fig = Figure(figsize=(5.2 * ncol, 9.0), layout="constrained")
     axs = fig.subplots(4, ncol, sharex=True, squeeze=False)

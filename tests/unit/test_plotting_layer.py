@@ -111,3 +111,11 @@ def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> 
         write_text_pdf([("p", "hi")], [], tmp_path / "t.pdf", per_page=0)
     with pytest.raises(ValueError, match=r"lines\[0\] = \('x', 'hi'\)"):
         write_text_pdf([("x", "hi")], [], tmp_path / "t.pdf")
+
+
+def test_plot_engagement_checks_runs_lockups_and_reference() -> None:
+    from drivetrain_ctrl.plotting import plot_engagement
+
+    for runs in ("x", [("a", 1)], {"a": 1}):
+        with pytest.raises(ValueError, match="give a list of .label, SimulationResult. pairs"):
+            plot_engagement(runs)  # type: ignore[arg-type]
