@@ -57,9 +57,20 @@ def _name(owner: str, field_: str, value: object) -> None:
 
 
 def _seq(owner: str, field_: str, value: object) -> None:
-    """A tuple or list (of knots, names, elements)."""
+    """A tuple, list or 1-d array (of knots, names, elements)."""
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        return
     if not isinstance(value, (tuple, list)):
         raise TypeError(f"{owner}.{field_} = {value!r}: must be a tuple")
+
+
+def _knots(obj: object, owner: str) -> None:
+    """Store ``obj.x``, ``obj.y`` (a frozen dataclass) as tuples of floats (lists and arrays in)."""
+    for fld in ("x", "y"):
+        v = getattr(obj, fld)
+        _seq(owner, fld, v)
+        if not isinstance(v, tuple):
+            object.__setattr__(obj, fld, tuple(float(a) if _is_number(a) else a for a in v))
 
 
 def _of_type(owner: str, field_: str, value: object, cls: type, optional: bool = True) -> None:
@@ -94,8 +105,7 @@ class PwlTable:
     name: str = "table"
 
     def __post_init__(self) -> None:
-        _seq(self.name, "x", self.x)
-        _seq(self.name, "y", self.y)
+        _knots(self, self.name)
         if len(self.x) != len(self.y) or not self.x:
             raise ValueError(
                 f"{self.name}: x and y must be non-empty and of equal length, got {len(self.x)} "
@@ -141,8 +151,7 @@ class Spring:
     name: str = "spring"
 
     def __post_init__(self) -> None:
-        _seq(self.name, "x", self.x)
-        _seq(self.name, "y", self.y)
+        _knots(self, self.name)
         if len(self.x) != len(self.y) or len(self.x) < 2:
             raise ValueError(f"{self.name}: needs at least two knots (x, y) of equal length")
         _finite(self.name, "x[0]", self.x[0])

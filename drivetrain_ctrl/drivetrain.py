@@ -348,9 +348,14 @@ class Drivetrain:
 
     def vehicle_speed_to_primary(self, v: float) -> float:
         """Primary-shaft speed [rad/s] that matches vehicle speed ``v`` [m/s] with no slip."""
-        if not is_finite_real(v):
-            raise ValueError(f"v = {v!r} [m/s]: must be a finite number")
-        return float(v) * self.tau_t / self.params.driveline.R_p
+        try:
+            va = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            va = np.asarray(np.nan)
+        if isinstance(v, (bool, np.bool_, str)) or not np.isfinite(va).all():
+            raise ValueError(f"v = {v!r} [m/s]: must be a finite number (or an array of them)")
+        out = va * self.tau_t / self.params.driveline.R_p
+        return float(out) if out.ndim == 0 else out  # type: ignore[return-value]
 
     def rigid_state(
         self,

@@ -10,6 +10,8 @@ from collections.abc import Callable, Collection, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 __all__ = ["load_builtin_or_toml", "load_toml_as", "reject_unknown", "is_finite_real"]
 
 T = TypeVar("T")
@@ -17,9 +19,12 @@ T = TypeVar("T")
 
 def is_finite_real(value: object) -> bool:
     """True if ``value`` is a finite real number: an ``int``, ``float``, NumPy integer or NumPy
-    floating scalar (e.g. ``np.float32(0.5)``), not a bool, not NaN or +-inf."""
+    floating scalar (e.g. ``np.float32(0.5)``) or a 0-d numeric array, not a bool, not NaN or
+    +-inf."""
     from .params import _is_real
 
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        value = value[()]  # a 0-d array holds one number
     if not _is_real(value):
         return False
     try:

@@ -41,10 +41,12 @@ class Mode:
     def __post_init__(self) -> None:
         for nm in ("fm", "reg"):
             v = getattr(self, nm)
-            if not isinstance(v, tuple) or not all(
-                isinstance(c, (int, np.integer)) and not isinstance(c, bool) for c in v
+            if not isinstance(v, (tuple, list, np.ndarray)) or not all(
+                isinstance(c, (int, np.integer)) and not isinstance(c, (bool, np.bool_)) for c in v
             ):
                 raise TypeError(f"Mode.{nm} = {v!r}: must be a tuple of integer codes")
+            if not isinstance(v, tuple) or not all(type(c) is int for c in v):
+                object.__setattr__(self, nm, tuple(int(c) for c in v))  # hashable, plain ints
 
     def arrays(self) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
         return np.array(self.fm, dtype=np.int64), np.array(self.reg, dtype=np.int64)

@@ -667,11 +667,11 @@ def write_text_pdf(
     """A PDF of text pages then figures. ``lines``: ``(style, text)`` with style ``h1``, ``h2``,
     ``p`` (paragraph) or ``t`` (monospace table row), already wrapped; A4 pages of ``per_page``
     lines; no creation date (the same input gives the same file)."""
-    if isinstance(per_page, bool) or not isinstance(per_page, int) or per_page < 1:
+    if isinstance(per_page, bool) or not isinstance(per_page, (int, np.integer)) or per_page < 1:
         raise ValueError(f"write_text_pdf: per_page = {per_page!r}: must be an integer >= 1")
     styles = {"h1", "h2", "p", "t"}
     for i, item in enumerate(lines):
-        if not (isinstance(item, tuple) and len(item) == 2 and item[0] in styles):
+        if not (isinstance(item, (tuple, list)) and len(item) == 2 and item[0] in styles):
             raise ValueError(
                 f"write_text_pdf: lines[{i}] = {item!r}: must be (style, text) with style one "
                 f"of {sorted(styles)}"

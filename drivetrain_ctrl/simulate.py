@@ -99,6 +99,8 @@ class SimulationOptions:
                 "full drivetrain, see the class docstring)"
             )
 
+        if isinstance(self.energy, np.bool_):
+            object.__setattr__(self, "energy", bool(self.energy))
         if not isinstance(self.energy, bool):
             raise ValueError(f"SimulationOptions.energy = {self.energy!r}: must be True or False")
         if self.smoothing is not None and (

@@ -379,3 +379,28 @@ def test_drivetrain_arguments_are_checked() -> None:
         dt.rigid_state(omega_engine=100.0, v_vehicle=0.0, throttle=2.0)
     with pytest.raises(ValueError, match="v = nan"):
         dt.vehicle_speed_to_primary(float("nan"))
+
+
+def test_arrays_and_numpy_values_still_work_where_they_did() -> None:
+    """The input checks keep what worked: knots as arrays, a Mode from a result row, 0-d arrays
+    as numbers, vectorised speed conversion."""
+    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.model import Mode
+    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.simulate import SimulationOptions
+
+    sp = Spring(np.array([0.0, 0.1, 0.2]), np.array([0.0, 10.0, 50.0]))
+    assert sp == Spring((0.0, 0.1, 0.2), (0.0, 10.0, 50.0))
+    assert PwlTable(np.array([0.0, 1.0]), [1.0, 2.0]).x == (0.0, 1.0)
+    dt = Drivetrain(default_params())
+    m = dt.model
+    x = dt.rigid_state(omega_engine=np.array(200.0), v_vehicle=np.array(1.0), throttle=0.3)
+    u = m.inputs(throttle=np.array(0.3), pedal=0.05, brake=0.0)
+    mode, _ = m.decide(x, u)
+    fm, reg = mode.arrays()
+    again = Mode(fm, list(reg))  # e.g. a result row res.fm[i], res.reg[i]
+    assert again == mode and hash(again) == hash(mode)
+    assert all(type(c) is int for c in again.fm)
+    v = np.array([1.0, 2.0])
+    assert np.allclose(dt.vehicle_speed_to_primary(v), v * dt.vehicle_speed_to_primary(1.0))
+    assert SimulationOptions(energy=np.True_).energy is True
