@@ -263,8 +263,11 @@ class Model:
                     str(fr.capacity_input),
                 )
             if fr.mu_table is not None and len(fr.mu_table.x) > 1:
+                # its argument |w| is >= 0 and the table starts at 0: no bound there (a region
+                # below 0 would be entered, and left at once, at every return to zero slip)
+                bnds, sl, of = _pwl_clamped(fr.mu_table)
                 f_mu[f] = add_table(
-                    K.ARG_SLIP, f, _pwl_clamped(fr.mu_table), f"{nm}.mu_table", f"|w_{nm}|"
+                    K.ARG_SLIP, f, (bnds[1:], sl[1:], of[1:]), f"{nm}.mu_table", f"|w_{nm}|"
                 )
             finfo.append(
                 FrictionInfo(

@@ -527,3 +527,33 @@ def test_backlash_gap_and_contact_times(opts: SimulationOptions, tol: float) -> 
     assert res.x[i, 2] == pytest.approx(g, abs=1e3 * tol)
     np.testing.assert_allclose(res.x[-1], [v, 0.0, -g + v * 0.01], rtol=0, atol=1e4 * tol)
     assert res.energy_residual_rel <= (1e-8 if tol > 1e-10 else 1e-11)
+
+
+@pytest.mark.parametrize("falling", [False, True])
+def test_break_away_with_a_mu_table(falling: bool) -> None:
+    """Two bodies at rest, 20 N m on the first, a clutch of 5 N m with a mu(slip) table that
+    starts at zero slip: it slips at once and the run ends (it used to stall at t = 0, entering
+    and leaving a table region below zero slip at every step). A flat table equals no table; a
+    falling one (mu 1 -> 0.5 over 1 rad/s) matches scipy on the slip ODE."""
+    from scipy.integrate import solve_ivp
+
+    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, PwlTable
+    from drivetrain_ctrl.model import Model
+
+    mu = PwlTable((0.0, 1.0), (1.0, 0.5 if falling else 1.0))
+    ch = Chain(
+        (Body("a", 1.0, torque_input="t"), Body("b", 2.0)),
+        (Coupling("s", friction=Friction(scale=5.0, mu_table=mu, name="f")),),
+        inputs=("t",),
+    )
+    res = simulate(Model(ch), np.zeros(2), {"t": 20.0}, t_end=0.5)
+    assert res.status == "ok" and res.stats["steps"] < 2000
+
+    def rhs(_t: float, w: np.ndarray) -> list[float]:
+        T = 5.0 * float(np.interp(w[0] - w[1], mu.x, mu.y))
+        return [20.0 - T, T / 2.0]
+
+    ref = solve_ivp(rhs, (0.0, 0.5), [0.0, 0.0], rtol=1e-11, atol=1e-11, method="DOP853")
+    assert np.allclose(res.x[-1], ref.y[:, -1], atol=1e-6)
+    if not falling:
+        assert np.allclose(res.x[-1], [7.5, 1.25], atol=1e-9)
