@@ -31,7 +31,7 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .closedloop import Actuator, Controller
+from .closedloop import Actuator, Controller, require_controller
 from .linear import (
     OperatingPoint,
     _slip_mode_poles_of,
@@ -39,7 +39,6 @@ from .linear import (
     linearise,
     natural_frequency_damping,
     rebuild_operating_point,
-    require_controller,
     require_op,
     trim_tf,
 )

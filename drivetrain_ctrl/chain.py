@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .loading import is_real
+
 __all__ = [
     "PwlTable",
     "Spring",
@@ -44,10 +46,6 @@ __all__ = [
 FRICTION_MODES: tuple[str, str, str, str] = ("stuck", "slip+", "slip-", "open")
 #: mode names of a spring with backlash: negative contact, gap, positive contact
 BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
-
-
-def _is_number(value: object) -> bool:
-    return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
 
 
 def _name(owner: str, field_: str, value: object) -> None:
@@ -70,7 +68,7 @@ def _knots(obj: object, owner: str) -> None:
         v = getattr(obj, fld)
         _seq(owner, fld, v)
         if not isinstance(v, tuple):
-            object.__setattr__(obj, fld, tuple(float(a) if _is_number(a) else a for a in v))
+            object.__setattr__(obj, fld, tuple(float(a) if is_real(a) else a for a in v))
 
 
 def _of_type(owner: str, field_: str, value: object, cls: type, optional: bool = True) -> None:
@@ -84,7 +82,7 @@ def _of_type(owner: str, field_: str, value: object, cls: type, optional: bool =
 def _finite(
     owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False
 ) -> None:
-    if not _is_number(value):
+    if not is_real(value):
         raise TypeError(f"{owner}.{name} must be a real number, got {value!r}")
     if not math.isfinite(value):
         raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
@@ -423,7 +421,7 @@ class Chain:
                     f"Chain.input_ranges: {iname!r} is not declared in Chain.inputs {self.inputs}"
                 )
             ok = isinstance(rng, (tuple, list)) and len(rng) == 2
-            ok = ok and all(_is_number(v) and not math.isnan(float(v)) for v in rng)
+            ok = ok and all(is_real(v) and not math.isnan(float(v)) for v in rng)
             if not ok or not float(rng[0]) < float(rng[1]):
                 raise ValueError(
                     f"Chain.input_ranges[{iname!r}] = {rng!r}: must be (lo, hi) with lo < hi"

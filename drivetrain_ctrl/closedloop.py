@@ -88,6 +88,19 @@ class LatchRamp:
             raise ValueError(f"LatchRamp.rate = {self.rate!r} [unit/s]: must be > 0")
 
 
+def require_controller(controller: object, what: str, *, optional: bool = False) -> None:
+    """Raise ``TypeError`` unless ``controller`` is a :class:`Controller` (or None if
+    ``optional``); ``what`` names the caller in the message."""
+    if optional and controller is None:
+        return
+    if not isinstance(controller, Controller):
+        raise TypeError(
+            f"{what}: controller = {controller!r}: must be a closedloop.Controller"
+            f"{' or None' if optional else ''} (build one with controllers.load_controller(NAME)"
+            ".build(params, reference=...), or let Scenario.run(dt, controller=NAME) do it)"
+        )
+
+
 #: largest transport delay of a :class:`Controller` [samples]: the loop keeps a buffer of this
 #: many values (a ``ControllerSpec`` allows fewer, ``controllers.MAX_DELAY_SAMPLES``)
 DELAY_BUFFER_MAX = 100_000

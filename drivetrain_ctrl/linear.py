@@ -74,7 +74,7 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from . import kernels as K
-from .closedloop import Actuator, Controller
+from .closedloop import Actuator, Controller, require_controller
 from .drivetrain import Drivetrain
 from .metrics import json_ready
 from .model import Mode, Model
@@ -643,11 +643,13 @@ def locked_trim(
     )
     for j, qi in enumerate(q_idx):
         p[1 + j] = x_guess[qi]
-    n_eq = len(resid(p))
-    if names.get("tyre", "grip") != "grip" or not np.isfinite(resid(p)).all():
+    r0 = resid(p)
+    n_eq = len(r0)
+    finite = bool(np.isfinite(r0).all())
+    if names.get("tyre", "grip") != "grip" or not finite:
         raise ValueError(
             f"locked_trim: vehicle_speed_kmh = {vk!r}: no locked steady state there (the initial "
-            f"decision gives {names}; residual finite: {bool(np.isfinite(resid(p)).all())})"
+            f"decision gives {names}; residual finite: {finite})"
         )
     if n_eq != p.shape[0]:
         raise RuntimeError(  # pragma: no cover - structural
@@ -1027,19 +1029,6 @@ def require_op(op: object, what: str) -> None:
         raise TypeError(
             f"{what}: op = {op!r}: must be an OperatingPoint (slip_operating_point, locked_trim "
             "or operating_point_from_result)"
-        )
-
-
-def require_controller(controller: object, what: str, *, optional: bool = False) -> None:
-    """Raise ``TypeError`` unless ``controller`` is a :class:`Controller` (or None if
-    ``optional``)."""
-    if optional and controller is None:
-        return
-    if not isinstance(controller, Controller):
-        raise TypeError(
-            f"{what}: controller = {controller!r}: must be a closedloop.Controller"
-            f"{' or None' if optional else ''} (build one with controllers.load_controller(NAME)"
-            ".build(params, reference=...))"
         )
 
 

@@ -12,20 +12,25 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-__all__ = ["load_builtin_or_toml", "load_toml_as", "reject_unknown", "is_finite_real"]
+__all__ = ["load_builtin_or_toml", "load_toml_as", "reject_unknown", "is_real", "is_finite_real"]
 
 T = TypeVar("T")
 
 
-def is_finite_real(value: object) -> bool:
-    """True if ``value`` is a finite real number: an ``int``, ``float``, NumPy integer or NumPy
-    floating scalar (e.g. ``np.float32(0.5)``) or a 0-d numeric array, not a bool, not NaN or
-    +-inf."""
-    from .params import _is_real
+def is_real(value: object) -> bool:
+    """True if ``value`` is a real number: an ``int``, ``float``, NumPy integer or NumPy floating
+    scalar (e.g. ``np.float32(0.5)``), not a bool (finite or not: see :func:`is_finite_real`)."""
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
 
+
+def is_finite_real(value: object) -> bool:
+    """True if ``value`` is a finite real number (:func:`is_real`) or a 0-d numeric array
+    holding one, not NaN or +-inf."""
     if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
         value = value[()]  # a 0-d array holds one number
-    if not _is_real(value):
+    if not is_real(value):
         return False
     try:
         return math.isfinite(float(value))  # type: ignore[arg-type]

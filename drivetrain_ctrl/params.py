@@ -52,6 +52,7 @@ import numpy as np
 import tomli_w
 from numpy.typing import NDArray
 
+from drivetrain_ctrl.loading import is_real
 from drivetrain_ctrl.units import GRAVITY
 
 __all__ = [
@@ -117,15 +118,9 @@ def _suggest(key: str, candidates: Iterable[str]) -> str:
     return f"; did you mean '{by_lower[match[0]]}'?" if match else ""
 
 
-def _is_real(value: object) -> bool:
-    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
-        value, bool | np.bool_
-    )
-
-
 def _to_float(path: str, value: object) -> float:
     """Coerce a real number to a finite ``float``; reject bool, str, NaN and inf."""
-    if not _is_real(value):
+    if not is_real(value):
         raise ParameterError(
             f"{path} = {_fmt(value)}: must be a real number, not {type(value).__name__}"
         )

@@ -98,7 +98,6 @@ class SimulationOptions:
                 f"SimulationOptions.rtol = {self.rtol!r}: must be < 1e-2 (keep it <= 1e-7 on the "
                 "full drivetrain, see the class docstring)"
             )
-
         if isinstance(self.energy, np.bool_):
             object.__setattr__(self, "energy", bool(self.energy))
         if not isinstance(self.energy, bool):
@@ -401,9 +400,7 @@ def _check_input_ranges(
         if name == skip or (lo == -math.inf and hi == math.inf):
             continue
         (vmin, tmin), (vmax, tmax) = sig.extremes(t0, t_end)
-        tol = 1e-12 * max(
-            1.0, abs(lo) if math.isfinite(lo) else 0.0, abs(hi) if math.isfinite(hi) else 0.0
-        )
+        tol = 1e-12 * max([1.0] + [abs(b) for b in (lo, hi) if math.isfinite(b)])
         bad = (vmin, tmin) if vmin < lo - tol else (vmax, tmax) if vmax > hi + tol else None
         if bad is not None:
             u = f" {unit}" if unit and unit != "-" else ""
@@ -503,12 +500,10 @@ def simulate(
     for nm, v in (("t0", t0), ("t_end", t_end)):
         if not is_finite_real(v):
             raise ValueError(f"{nm} = {v!r}: must be a finite number [s]")
-    if controller is not None and not hasattr(controller, "compile"):
-        raise TypeError(
-            f"controller = {controller!r}: must be a closedloop.Controller (build one with "
-            "controllers.load_controller(NAME_OR_FILE).build(params, reference=...), or let "
-            "Scenario.run(dt, controller=NAME) do it)"
-        )
+    if controller is not None:
+        from .closedloop import require_controller  # python-control only for closed loops
+
+        require_controller(controller, "simulate")
     try:
         x0 = np.array(x0, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -599,10 +594,10 @@ def simulate(
     nx = model.nx
     nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
-    events = _events(model, evt, evel, evf, evto)
-    stat = _STATUS.get(int(status), str(status))
     if T.shape[0] and not np.isfinite(Y[-1]).all():
         _raise_non_finite(model, T, Y, nx, nxs)
+    events = _events(model, evt, evel, evf, evto)
+    stat = _STATUS.get(int(status), str(status))
     res = SimulationResult(
         model=model,
         t=T,
