@@ -157,6 +157,8 @@ def input_ranges(p: DrivetrainParams) -> dict[str, tuple[float, float]]:
     """Physical range of each input: throttle theta in [0, 1] [-], pedal (actuator position
     x_c) within the stroke ``[actuator.x_min, actuator.x_max]`` [m], brake capacity in
     ``[0, brake.capacity_max]`` [N m at the wheels]."""
+    if not isinstance(p, DrivetrainParams):
+        raise TypeError(f"input_ranges: p = {p!r}: must be a DrivetrainParams")
     return {
         "throttle": (0.0, 1.0),
         "pedal": (p.actuator.x_min, p.actuator.x_max),

@@ -145,6 +145,9 @@ class Signal:
         ``t1`` or a knot, both sides of a jump counted); with sines, on a grid of 40 points per
         period of the fastest one (at most 200000 points) plus those times. Of equal values the
         earliest time is given."""
+        t0, t1 = _check_finite("extremes: t0", t0), _check_finite("extremes: t1", t1)
+        if not t0 <= t1:
+            raise ValueError(f"extremes: t0 = {t0!r} s must be <= t1 = {t1!r} s")
         ts, vs = np.asarray(self.times), np.asarray(self.values)
         inside = (ts > t0) & (ts < t1)
         cand_t = np.concatenate([[t0, t1, t1], ts[inside]])

@@ -11,7 +11,7 @@ import pytest
 
 from drivetrain_ctrl import signals as sg
 from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.drivetrain import Drivetrain
+from drivetrain_ctrl.drivetrain import Drivetrain, input_ranges
 from drivetrain_ctrl.model import Model
 from drivetrain_ctrl.params import default_params
 from drivetrain_ctrl.scenarios import builtin_scenarios
@@ -441,6 +441,8 @@ def test_input_ranges_follow_the_parameter_set() -> None:
     p = default_params()
     dt = Drivetrain(p.replace(**{"actuator.x_max": 0.2, "brake.capacity_max": 5000.0}))
     ranges = dict(zip(dt.model.input_names, dt.model.input_ranges, strict=True))
+    with pytest.raises(TypeError, match="input_ranges: p = None: must be a DrivetrainParams"):
+        input_ranges(None)  # type: ignore[arg-type]
     assert ranges == {"throttle": (0.0, 1.0), "pedal": (0.0, 0.2), "brake": (0.0, 5000.0)}
     # a chain without ranges leaves its inputs unbounded
     m, _, x0 = small()

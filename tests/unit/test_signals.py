@@ -315,3 +315,10 @@ def test_bad_signal_construction_names_the_field(fn: object, exc: type, match: s
 def test_from_dict_with_wrong_types_names_the_field(d: object, match: str) -> None:
     with pytest.raises(ValueError, match=match):
         Signal.from_dict(d, name="inputs.pedal")  # type: ignore[arg-type]
+
+
+def test_extremes_checks_its_window() -> None:
+    with pytest.raises(ValueError, match="extremes: t0 = 2.0 s must be <= t1 = 1.0 s"):
+        constant(1.0).extremes(2.0, 1.0)
+    with pytest.raises(ValueError, match="extremes: t1 must be finite"):
+        constant(1.0).extremes(0.0, math.inf)
