@@ -120,15 +120,8 @@ class PwlTable:
                 )
 
     def __call__(self, v: float) -> float:
-        x, y = self.x, self.y
-        if v <= x[0]:
-            return y[0]
-        if v >= x[-1]:
-            return y[-1]
-        for k in range(len(x) - 1):
-            if v <= x[k + 1]:
-                return y[k] + (y[k + 1] - y[k]) * (v - x[k]) / (x[k + 1] - x[k])
-        return y[-1]  # pragma: no cover
+        """The table at ``v``: linear between knots, the end values beyond them (NaN for NaN)."""
+        return float(np.interp(v, self.x, self.y))
 
 
 @dataclass(frozen=True, slots=True)

@@ -239,6 +239,11 @@ class SimulationResult:
                 raise ValueError(f"lockup_time: {nm} = {v!r} [s]: must be a finite number")
         if min_duration < 0:
             raise ValueError(f"lockup_time: min_duration = {min_duration!r} [s]: must be >= 0")
+        if self.t.shape[0] and after > self.t[-1]:
+            raise ValueError(
+                f"lockup_time: after = {after!r} [s] is past the end of the run "
+                f"({float(self.t[-1]):.6g} s)"
+            )
         phases = self.stuck_phases(element)
         for t0, t1 in phases:
             if t0 >= after and t1 - t0 >= min_duration:

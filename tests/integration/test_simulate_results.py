@@ -172,6 +172,8 @@ def test_lockup_time() -> None:
         res.lockup_time(min_duration=-1.0)
     with pytest.raises(ValueError, match="after"):
         res.lockup_time(after=float("inf"))
+    with pytest.raises(ValueError, match=r"after = 99.0 \[s\] is past the end of the run"):
+        res.lockup_time(after=99.0)
     # stuck phases: entered from slip, each ending at the first sample after it
     ph = res.stuck_phases("clutch")
     stuck_events = [e.t for e in res.events if e.element == "clutch" and e.to_mode == "stuck"]

@@ -199,6 +199,7 @@ def test_pwl_table() -> None:
     assert t(-1.0) == 1.0 and t(0.5) == pytest.approx(2.0) and t(2.0) == pytest.approx(2.5)
     assert t(9.0) == 2.0
     assert PwlTable((1.0,), (4.0,))(-3.0) == 4.0
+    assert np.isnan(t(float("nan")))  # NaN in, NaN out (not an end value)
     with pytest.raises(ValueError, match="strictly increasing"):
         PwlTable((0.0, 0.0), (1.0, 2.0), "tab")
     with pytest.raises(ValueError, match="non-empty"):
