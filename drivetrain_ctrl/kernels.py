@@ -2703,6 +2703,14 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                     if hit:
                         status = ZENO
                         status_el = nf + nt + N_CL_EVENT_BLOCKS  # the controller as a whole
+                elif n_ev == n_old:
+                    # a guard crossing that changed no mode: counted too, so that crossings that
+                    # repeat at one instant (a stall in ever shorter steps, which no mode change
+                    # would end) stop the run here instead of at max_steps
+                    zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
+                    if hit:
+                        status = ZENO
+                        status_el = j if j < nf else nf + (j - nf) // 2
                 if status != OK:
                     break
             if n_ev >= max_events:

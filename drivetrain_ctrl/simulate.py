@@ -70,7 +70,8 @@ class SimulationOptions:
     step (at most h_max);
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
-    zeno_window [s] stop the run (:class:`ZenoError`). smoothing [rad/s or m/s]: replace every
+    zeno_window [s] stop the run (:class:`ZenoError`; a guard crossing that changes no mode counts
+    as an event here, so that crossings repeating at one instant stop the run at once). smoothing [rad/s or m/s]: replace every
     Coulomb law ``k sgn(w)`` by ``k tanh(w / smoothing)`` (no stick: for comparison only; the
     default ``None`` is the exact switching model).
     """
@@ -632,7 +633,8 @@ def simulate(
         name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
         raise ZenoError(
             f"events accumulate (Zeno) at t = {float(t_last):.9g} s on element {name!r}: "
-            f"{opts.zeno_count} events within {opts.zeno_window:g} s"
+            f"{opts.zeno_count} events (mode changes or guard crossings) within "
+            f"{opts.zeno_window:g} s"
         )
     if stat == "too_many_candidates":
         raise RuntimeError(

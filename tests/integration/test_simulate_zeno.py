@@ -169,3 +169,41 @@ def test_relay_sliding_mode_is_a_real_zeno_case_at_default_settings() -> None:
     assert m is not None, str(exc.value)
     assert m.group(2) == "controller"
     assert t_star <= float(m.group(1)) < t_star + 1e-3
+
+
+def test_guard_crossings_that_repeat_at_one_instant_stop_the_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A stall in ever shorter steps, with guard crossings that change no mode, is stopped by the
+    Zeno guard at once, naming the element, not by ``max_steps`` much later. Reproduced with the
+    bug fixed in 10044e2: a mu(slip) table with a bound at zero slip (each return to zero slip
+    entered a region below 0 and left it at once)."""
+    import drivetrain_ctrl.model as model_mod
+    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, PwlTable
+    from drivetrain_ctrl.model import Model
+
+    orig = model_mod._pwl_clamped
+
+    def with_a_bound_at_zero_slip(t: PwlTable) -> tuple[list[float], list[float], list[float]]:
+        b, s, o = orig(t)  # the model drops the first bound: this restores it
+        return [-1.0, *b], [0.0, *s], [o[0], *o]
+
+    monkeypatch.setattr(model_mod, "_pwl_clamped", with_a_bound_at_zero_slip)
+    mu = PwlTable((0.0, 1.0), (1.0, 0.5))
+    ch = Chain(
+        (Body("a", 1.0, torque_input="t"), Body("b", 2.0)),
+        (Coupling("s", friction=Friction(scale=5.0, mu_table=mu, name="f")),),
+        inputs=("t",),
+    )
+    model = Model(ch)
+    monkeypatch.undo()
+    opts = SimulationOptions(max_steps=200_000)  # without the guard: stops at max_steps
+    with pytest.raises(ZenoError) as exc:
+        simulate(model, np.zeros(2), {"t": 20.0}, t_end=0.5, options=opts)
+    m = ZENO_MSG.search(str(exc.value))
+    assert m is not None, str(exc.value)
+    assert float(m.group(1)) < 1e-9  # at the break-away, t = 0
+    assert m.group(2) == "f.mu_table"
+    assert "guard crossings" in str(exc.value)
+    part = simulate(model, np.zeros(2), {"t": 20.0}, t_end=0.5, options=opts, raise_on_zeno=False)
+    assert part.status == "zeno" and part.stats["steps"] < 1000
