@@ -473,6 +473,14 @@ def n_guards(D: ChainData) -> int:
     return D.f_kind.shape[0] + 2 * D.t_nb.shape[0]
 
 
+@jit_inline
+def guard_element(D: ChainData, j: int) -> int:
+    """The element whose guard ``j`` is (layout of :func:`guards`): friction element ``j``, or
+    table ``nf + k`` for its two guards; the event-list numbering (``ev_el``)."""
+    nf = D.f_kind.shape[0]
+    return j if j < nf else nf + (j - nf) // 2
+
+
 @jit
 def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) -> None:
     """Guard values (>= 0 while the mode holds) into ``g``.
@@ -2710,7 +2718,7 @@ def simulate_kernel(  # type: ignore[no-untyped-def]
                     zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
                     if hit:
                         status = ZENO
-                        status_el = j if j < nf else nf + (j - nf) // 2
+                        status_el = guard_element(D, j)
                 if status != OK:
                     break
             if n_ev >= max_events:

@@ -71,9 +71,9 @@ class SimulationOptions:
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
     zeno_window [s] stop the run (:class:`ZenoError`; a guard crossing that changes no mode counts
-    as an event here, so that crossings repeating at one instant stop the run at once). smoothing [rad/s or m/s]: replace every
-    Coulomb law ``k sgn(w)`` by ``k tanh(w / smoothing)`` (no stick: for comparison only; the
-    default ``None`` is the exact switching model).
+    as an event here, so that crossings repeating at one instant stop the run at once).
+    smoothing [rad/s or m/s]: replace every Coulomb law ``k sgn(w)`` by ``k tanh(w / smoothing)``
+    (no stick: for comparison only; the default ``None`` is the exact switching model).
     """
 
     rtol: float = 1e-8
