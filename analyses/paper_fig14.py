@@ -24,10 +24,12 @@ import json
 from pathlib import Path
 from typing import Any
 
-from drivetrain_ctrl.metrics import engagement_metrics, json_ready
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.plotting import plot_engagement
-from drivetrain_ctrl.scenarios import load_scenario
+from drivetrain_ctrl.core.serialize import json_ready
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.reporting.figures import plot_engagement
+from drivetrain_ctrl.scenarios.scenario import load_scenario
+from drivetrain_ctrl.sim.metrics import engagement_metrics
+from drivetrain_ctrl.sim.run import run_scenario
 
 OUT = Path(__file__).resolve().parent.parent / "reports" / "paper_fig14"
 
@@ -81,7 +83,7 @@ def main(*, quick: bool = False, out: Path | str = OUT) -> dict[str, Any]:
         locks = []
         for kind in ("reduced", "full"):
             dt = sc.drivetrain(params, kind=kind)
-            res = sc.run(dt, controller=ctl)
+            res = run_scenario(sc, dt, controller=ctl)
             m = engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
             runs[kind] = m
             plotted.append((f"{kind} model, controller {ctl}", res))

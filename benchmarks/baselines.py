@@ -48,14 +48,14 @@ from numpy.typing import NDArray
 from scipy.integrate import DOP853, RK45, OdeSolution, solve_ivp
 from scipy.optimize import brentq
 
-from drivetrain_ctrl.params import DrivetrainParams
-from drivetrain_ctrl.reference import (
+from drivetrain_ctrl.core.signals import Signal
+from drivetrain_ctrl.core.units import GRAVITY
+from drivetrain_ctrl.plant.params import DrivetrainParams
+from drivetrain_ctrl.testing.reference import (
     FRICTION_MODE_NAMES,
     full_reference_rhs,
     full_reference_stuck_torques,
 )
-from drivetrain_ctrl.signals import Signal
-from drivetrain_ctrl.units import GRAVITY
 
 F64 = NDArray[np.float64]
 

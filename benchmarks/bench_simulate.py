@@ -47,11 +47,11 @@ sys.path.insert(0, str(HERE))
 
 import baselines as B  # noqa: E402
 
-from drivetrain_ctrl.drivetrain import Drivetrain  # noqa: E402
-from drivetrain_ctrl.params import DrivetrainParams, default_params  # noqa: E402
-from drivetrain_ctrl.scenarios import Scenario, load_scenario  # noqa: E402
-from drivetrain_ctrl.signals import Signal  # noqa: E402
-from drivetrain_ctrl.simulate import SimulationOptions, simulate  # noqa: E402
+from drivetrain_ctrl.core.signals import Signal  # noqa: E402
+from drivetrain_ctrl.plant.drivetrain import Drivetrain  # noqa: E402
+from drivetrain_ctrl.plant.params import DrivetrainParams, default_params  # noqa: E402
+from drivetrain_ctrl.scenarios.scenario import Scenario, load_scenario  # noqa: E402
+from drivetrain_ctrl.sim.simulator import SimulationOptions, simulate  # noqa: E402
 
 SCENARIOS = ("engage-ramp", "tip-in")
 SPEED_NAMES = (
@@ -426,9 +426,9 @@ def bench_scenario(name: str, quick: bool) -> dict[str, Any]:
 _COMPILE_SCRIPT = """
 import json, time
 t0 = time.perf_counter()
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import load_scenario
-from drivetrain_ctrl.simulate import simulate
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import load_scenario
+from drivetrain_ctrl.sim.simulator import simulate
 t1 = time.perf_counter()
 sc = load_scenario("engage-ramp")
 dt = sc.drivetrain(default_params())

@@ -38,8 +38,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from .loading import is_finite_real
-from .params import (
+from .core.validate import is_finite_real
+from .plant.params import (
     DEFAULT_SET,
     DrivetrainParams,
     Table,
@@ -48,7 +48,8 @@ from .params import (
     field_paths,
     load_params,
 )
-from .scenarios import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from .scenarios.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from .sim.run import run_scenario
 
 __all__ = ["main", "run_simulation"]
 
@@ -68,7 +69,7 @@ SIMULATION_FILES: tuple[str, ...] = (
 
 def _controller_names(sep: str) -> str:
     """The built-in controller names joined by ``sep`` (help and error texts)."""
-    from .controllers import builtin_controllers
+    from .control.laws import builtin_controllers
 
     return sep.join(builtin_controllers())
 
@@ -136,8 +137,9 @@ def run_simulation(
     Returns ``{"metrics": ..., "timing": ..., "files": [...]}``. Raises :class:`InputError`
     for invalid options and :class:`RunError` if the simulation fails.
     """
-    from .metrics import engagement_metrics, json_ready
-    from .simulate import InputRangeError, SimulationOptions, ZenoError
+    from .core.serialize import json_ready
+    from .sim.metrics import engagement_metrics
+    from .sim.simulator import InputRangeError, SimulationOptions, ZenoError
 
     tic = time.perf_counter()
     if not isinstance(plots, bool):
@@ -167,7 +169,7 @@ def run_simulation(
         scenario.initial_state(dt)  # validates the initial state for this model
     except ValueError as exc:
         raise InputError(f"scenario {scenario.name!r}: {_msg(exc)}") from None
-    from .controllers import ControllerError, load_controller
+    from .control.laws import ControllerError, load_controller
 
     spec = None
     if controller is None and scenario.needs_controller:
@@ -193,9 +195,11 @@ def run_simulation(
         # model calls every kernel the real run calls; its failures are the real run's to report
         tic_load = time.perf_counter()
         with contextlib.suppress(ZenoError, RuntimeError):
-            scenario.run(dt, controller=ctrl, options=opts, t_end=min(float(t_stop), 1e-3))
+            run_scenario(
+                scenario, dt, controller=ctrl, options=opts, t_end=min(float(t_stop), 1e-3)
+            )
         load_s = time.perf_counter() - tic_load
-        res = scenario.run(dt, controller=ctrl, options=opts, t_end=float(t_stop))
+        res = run_scenario(scenario, dt, controller=ctrl, options=opts, t_end=float(t_stop))
     except (ControllerError, ScenarioError, InputRangeError) as exc:  # e.g. outside the stroke
         raise InputError(f"scenario {scenario.name!r}: {exc}") from None
     except (ZenoError, RuntimeError) as exc:
@@ -218,7 +222,7 @@ def run_simulation(
         res.events_dataframe().to_csv(out / "events.csv", index=False, lineterminator="\n")
         _write_json(out / "metrics.json", record)
         if plots:
-            from .plotting import plot_energy, plot_simulation
+            from .reporting.figures import plot_energy, plot_simulation
 
             plot_simulation(res, out / "overview.png")
             plot_energy(res, out / "energy.png")
@@ -434,7 +438,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         r = run_simulation(sc, params, kind, out / f"{label}-{kind}", controller=ctl)
         done.append((label, kind, r))
     bar.close()
-    from .report import build_report
+    from .reporting.controller_report import build_report
 
     print(
         f"{PROG} demo: linear analysis report of law (6) -> {out / 'report-paper'}/",
@@ -461,7 +465,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from .report import build_report
+    from .reporting.controller_report import build_report
 
     _check_out_dir(Path(args.out))
     _note_existing(Path(args.out))

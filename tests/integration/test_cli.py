@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from drivetrain_ctrl.cli import SIMULATION_FILES, main
-from drivetrain_ctrl.metrics import METRIC_KEYS
-from drivetrain_ctrl.params import PARAMETER_SETS_DIR
+from drivetrain_ctrl.plant.params import PARAMETER_SETS_DIR
+from drivetrain_ctrl.sim.metrics import METRIC_KEYS
 
 FILES = SIMULATION_FILES
 # the outputs the issue names are among them
@@ -222,7 +222,7 @@ def test_t_end_before_the_start_command_exits_2(
 
 
 def test_help_lists_the_builtin_controllers(capsys: pytest.CaptureFixture[str]) -> None:
-    from drivetrain_ctrl.controllers import builtin_controllers
+    from drivetrain_ctrl.control.laws import builtin_controllers
 
     for command in ("simulate", "report"):
         assert main([command, "--help"]) == 0
@@ -235,7 +235,7 @@ def test_simulate_builds_the_controller_once(tmp_path: Path) -> None:
     stability warning) is built once for both."""
     import warnings
 
-    from drivetrain_ctrl.controllers import UnstableLoopWarning
+    from drivetrain_ctrl.control.laws import UnstableLoopWarning
 
     hot = tmp_path / "hot.toml"
     hot.write_text(
@@ -255,7 +255,7 @@ def test_simulate_builds_the_controller_once(tmp_path: Path) -> None:
 def _scenario_file(tmp_path: Path, name: str, **inputs: dict[str, list[float]]) -> Path:
     import tomli_w
 
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     d = load_scenario(name).to_dict()
     d["inputs"].update(inputs)
@@ -315,7 +315,7 @@ def test_report_and_demo_failures_and_existing_out(
 ) -> None:
     """A simulation that fails inside ``report`` is a one-line error (exit 1), no traceback; a
     report into a non-empty directory says that outputs are replaced."""
-    import drivetrain_ctrl.report as R
+    import drivetrain_ctrl.reporting.controller_report as R
 
     def boom(**_kw: object) -> None:
         raise RuntimeError("simulation stopped at t = 0.1 s: step_too_small")

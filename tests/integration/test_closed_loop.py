@@ -8,11 +8,12 @@ import control
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.chain import Body, Chain
-from drivetrain_ctrl.closedloop import Actuator, Controller
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.signals import constant
-from drivetrain_ctrl.simulate import SimulationOptions, simulate
+from drivetrain_ctrl.control.blocks import Actuator, Controller
+from drivetrain_ctrl.core.signals import constant
+from drivetrain_ctrl.plant.chain import Body, Chain
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.sim.run import run_scenario
+from drivetrain_ctrl.sim.simulator import SimulationOptions, simulate
 
 J = 0.5  # kg m^2
 R = 100.0  # rad/s reference
@@ -132,9 +133,9 @@ def test_controller_validation_names_the_field() -> None:
 
 @pytest.mark.parametrize("discrete", [False, True])
 def test_pi_variant_of_law6_runs_on_the_switching_plant(discrete: bool) -> None:
-    from drivetrain_ctrl.closedloop import pi_controller
-    from drivetrain_ctrl.params import default_params
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.control.laws import pi_controller
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     p = default_params()
     sc = load_scenario("paper-start")
@@ -162,7 +163,7 @@ def test_pi_variant_of_law6_runs_on_the_switching_plant(discrete: bool) -> None:
     w = res.state("omega_engine")
     assert w.min() > 20.0  # no stall
     # the integral state is really used: PI and law (6) differ
-    law6 = sc.run(dt, controller="paper")
+    law6 = run_scenario(sc, dt, controller="paper")
     assert abs(np.interp(1.2, res.t, w) - np.interp(1.2, law6.t, law6.state("omega_engine"))) > 1.0
 
 
@@ -186,7 +187,7 @@ def test_rate_limiter_ramps_at_its_rate_then_follows() -> None:
 
 
 def test_lookup_table_shapes_the_output_and_its_knees_are_events() -> None:
-    from drivetrain_ctrl.chain import PwlTable
+    from drivetrain_ctrl.core.tables import PwlTable
 
     # torque = table(omega): 10 N m below 5 rad/s, falling to 0 at 15 rad/s
     c = Controller(
@@ -207,8 +208,8 @@ def test_lookup_table_shapes_the_output_and_its_knees_are_events() -> None:
 
 
 def test_pi_controller_rejects_bad_gains_naming_them() -> None:
-    from drivetrain_ctrl.closedloop import pi_controller
-    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.control.laws import pi_controller
+    from drivetrain_ctrl.plant.params import default_params
 
     p = default_params()
     with pytest.raises(ValueError, match="kp"):
@@ -220,8 +221,8 @@ def test_pi_controller_rejects_bad_gains_naming_them() -> None:
 @pytest.mark.parametrize("rate", [0.0, -0.05, math.nan, 20.0])
 def test_shortcuts_reject_a_bad_engage_rate_naming_it(rate: float) -> None:
     """``engage_rate=0`` is an error, not a silent "no latch" (that is ``None``)."""
-    from drivetrain_ctrl.closedloop import law6_controller, pi_controller
-    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.control.laws import law6_controller, pi_controller
+    from drivetrain_ctrl.plant.params import default_params
 
     p = default_params()
     with pytest.raises(ValueError, match=r"law6_controller: .*engage_rate \(engage_rate_m_s\)"):
@@ -231,8 +232,8 @@ def test_shortcuts_reject_a_bad_engage_rate_naming_it(rate: float) -> None:
 
 
 def test_shortcuts_latch_only_with_an_engage_rate() -> None:
-    from drivetrain_ctrl.closedloop import law6_controller, pi_controller
-    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.control.laws import law6_controller, pi_controller
+    from drivetrain_ctrl.plant.params import default_params
 
     p = default_params()
     for make in (
@@ -280,8 +281,8 @@ def test_controller_fields_are_checked_and_named(kw: dict[str, object], match: s
 
 
 def test_controller_initial_outside_the_input_range_is_rejected() -> None:
-    from drivetrain_ctrl.params import default_params
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     p = default_params()
     sc = load_scenario("paper-start", params=p)

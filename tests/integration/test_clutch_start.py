@@ -10,9 +10,8 @@ import control
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.closedloop import Controller, LatchRamp
-from drivetrain_ctrl.controllers import (
+from drivetrain_ctrl.control.blocks import Controller, LatchRamp
+from drivetrain_ctrl.control.laws import (
     ControllerError,
     ControllerSpec,
     UnstableLoopWarning,
@@ -20,13 +19,15 @@ from drivetrain_ctrl.controllers import (
     load_controller,
     slip_loop,
 )
-from drivetrain_ctrl.metrics import engagement_metrics
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import ScenarioError, idle_throttle, load_scenario
-from drivetrain_ctrl.signals import ramp, sine
-from drivetrain_ctrl.simulate import simulate
-from drivetrain_ctrl.units import kmh_to_m_s, rpm_to_rad_s
+from drivetrain_ctrl.core.signals import ramp, sine
+from drivetrain_ctrl.core.units import kmh_to_m_s, rpm_to_rad_s
+from drivetrain_ctrl.plant.chain import two_body_clutch
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import ScenarioError, idle_throttle, load_scenario
+from drivetrain_ctrl.sim.metrics import engagement_metrics
+from drivetrain_ctrl.sim.run import run_scenario
+from drivetrain_ctrl.sim.simulator import simulate
 
 P = default_params()
 SC = load_scenario("paper-start", params=P)
@@ -34,7 +35,7 @@ SC = load_scenario("paper-start", params=P)
 
 def _run(kind: str, ctl: object, sc=SC, **kw):  # type: ignore[no-untyped-def]
     dt = sc.drivetrain(P, kind=kind)
-    res = sc.run(dt, controller=ctl, **kw)
+    res = run_scenario(sc, dt, controller=ctl, **kw)
     return res, engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
 
 
@@ -67,7 +68,7 @@ def test_engine_idles_with_the_clutch_open_until_the_start() -> None:
 def test_a_scenario_that_needs_a_controller_says_so() -> None:
     dt = SC.drivetrain(P, kind="reduced")
     with pytest.raises(ScenarioError, match="needs a controller"):
-        SC.run(dt)
+        run_scenario(SC, dt)
     with pytest.raises(ScenarioError, match="open loop"):
         open_sc = load_scenario("engage-ramp")
         open_sc.make_controller(open_sc.drivetrain(P), "paper")
@@ -350,8 +351,8 @@ def test_closed_loop_scenario_round_trips_through_toml(tmp_path) -> None:  # typ
 
 
 def test_new_entry_points_name_the_bad_argument() -> None:
-    from drivetrain_ctrl.metrics import filtered_jerk
-    from drivetrain_ctrl.plotting import plot_engagement
+    from drivetrain_ctrl.reporting.figures import plot_engagement
+    from drivetrain_ctrl.sim.metrics import filtered_jerk
 
     res, _ = _run("reduced", "paper", t_end=0.6)
     dt = SC.drivetrain(P, kind="reduced")
@@ -381,11 +382,13 @@ def test_short_damper_stick_episode_matches_a_run_with_tiny_steps() -> None:
     h_max = 10 us up to 1 s, including a damper stick episode of 39 us near 0.7933 s inside one
     ordinary step: found through the slip speed's dip on the continuous extension, not by the
     guards at the step ends (the simulator before the dip check stepped over it)."""
-    from drivetrain_ctrl.simulate import SimulationOptions
+    from drivetrain_ctrl.sim.simulator import SimulationOptions
 
     dt = SC.drivetrain(P, kind="full")
-    res = SC.run(dt, controller="paper", t_end=1.0)
-    fine = SC.run(dt, controller="paper", t_end=1.0, options=SimulationOptions(h_max=1e-5))
+    res = run_scenario(SC, dt, controller="paper", t_end=1.0)
+    fine = run_scenario(
+        SC, dt, controller="paper", t_end=1.0, options=SimulationOptions(h_max=1e-5)
+    )
     ev = [(e.element, e.from_mode, e.to_mode) for e in res.events]
     assert ev == [(e.element, e.from_mode, e.to_mode) for e in fine.events]
     dt_ev = [abs(a.t - b.t) for a, b in zip(res.events, fine.events, strict=True)]
@@ -403,7 +406,7 @@ def test_controller_block_changes_are_in_the_event_list() -> None:
     entries (the controller's are extra rows)."""
     dt = SC.drivetrain(P, kind="reduced")
     for ctl in ("paper", "pi"):
-        res = SC.run(dt, controller=ctl)
+        res = run_scenario(SC, dt, controller=ctl)
         ev = res.events
         lock = [e for e in ev if e.element == "clutch" and e.to_mode == "stuck"]
         latch = [e for e in ev if e.element == "controller.latch"]

@@ -8,9 +8,9 @@ import sys
 
 RUN = """
 import numpy as np
-from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.simulate import simulate
+from drivetrain_ctrl.plant.chain import two_body_clutch
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.sim.simulator import simulate
 res = simulate(Model(two_body_clutch(0.2, 1.0, capacity=50.0)), [100.0, 0.0], {"torque1": 20.0},
                t_end=1.0)
 assert res.status == "ok" and len(res.events) == 1

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from drivetrain_ctrl import linear as L
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.drivetrain import full_model, reduced_model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.simulate import simulate
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.plant.drivetrain import full_model, reduced_model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.sim.simulator import simulate
 
 P = default_params()
 

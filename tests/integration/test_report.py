@@ -9,8 +9,8 @@ import matplotlib
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.controllers import ControllerError
-from drivetrain_ctrl.report import MARGIN_KEYS, SECTIONS, build_report
+from drivetrain_ctrl.control.laws import ControllerError
+from drivetrain_ctrl.reporting.controller_report import MARGIN_KEYS, SECTIONS, build_report
 
 matplotlib.use("Agg")
 
@@ -134,8 +134,8 @@ def test_report_full_model(tmp_path):
 def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
     """The nominal run of the step comparison is shared by the step sizes, and the scenario's
     controller is built once (the step runs use a state-matched copy of it)."""
-    from drivetrain_ctrl import report as R
-    from drivetrain_ctrl.controllers import ControllerSpec
+    from drivetrain_ctrl.control.laws import ControllerSpec
+    from drivetrain_ctrl.reporting import controller_report as R
 
     calls = {"simulate": 0, "build": 0}
     sim, build = R.simulate, ControllerSpec.build
@@ -157,7 +157,7 @@ def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
 def test_report_on_a_scenario_too_short_for_the_step_responses(tmp_path):
     import dataclasses
 
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     sc = dataclasses.replace(load_scenario("paper-start"), name="short", t_end=0.6)
     with pytest.raises(ValueError, match=r"scenario 'short': t_end = 0.6 s leaves no time"):

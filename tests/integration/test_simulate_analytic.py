@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, Spring, two_body_clutch
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, Spring, two_body_clutch
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.sim.simulator import SimulationOptions, SimulationResult, simulate
 
 T_EV = 1e-9  # event-time tolerance [s]
 
@@ -537,8 +537,9 @@ def test_break_away_with_a_mu_table(falling: bool) -> None:
     falling one (mu 1 -> 0.5 over 1 rad/s) matches scipy on the slip ODE."""
     from scipy.integrate import solve_ivp
 
-    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, PwlTable
-    from drivetrain_ctrl.model import Model
+    from drivetrain_ctrl.core.tables import PwlTable
+    from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
+    from drivetrain_ctrl.plant.model import Model
 
     mu = PwlTable((0.0, 1.0), (1.0, 0.5 if falling else 1.0))
     ch = Chain(

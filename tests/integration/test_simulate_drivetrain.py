@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from drivetrain_ctrl.chain import Body, Chain
-from drivetrain_ctrl.drivetrain import Drivetrain
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.reference import full_reference_rhs
-from drivetrain_ctrl.scenarios import Scenario, builtin_scenarios
-from drivetrain_ctrl.simulate import SimulationOptions, SimulationResult, simulate
+from drivetrain_ctrl.plant.chain import Body, Chain
+from drivetrain_ctrl.plant.drivetrain import Drivetrain
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import Scenario, builtin_scenarios
+from drivetrain_ctrl.sim.simulator import SimulationOptions, SimulationResult, simulate
+from drivetrain_ctrl.testing.reference import full_reference_rhs
 
 SCENARIOS = ("engage-ramp", "tip-in")
 TIGHT = SimulationOptions(rtol=1e-11, atol=1e-12)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.simulate import simulate
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.sim.simulator import simulate
 
 
 def chain_at_rest(n_bodies: int) -> tuple[Model, dict[str, float]]:

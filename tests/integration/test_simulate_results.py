@@ -9,13 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.drivetrain import Drivetrain, input_ranges
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import builtin_scenarios
-from drivetrain_ctrl.simulate import (
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.plant.chain import two_body_clutch
+from drivetrain_ctrl.plant.drivetrain import Drivetrain, input_ranges
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import builtin_scenarios
+from drivetrain_ctrl.sim.simulator import (
     Event,
     InputRangeError,
     SimulationOptions,
@@ -82,7 +82,7 @@ def test_to_dataframe_columns_carry_units_and_values() -> None:
     assert {"input_throttle [-]", "input_brake [N m]"} <= cols
     # the axle torque also at the wheels: ratio D_c times the secondary-frame torque; its peak is
     # the metrics' peak_axle_torque_Nm
-    from drivetrain_ctrl.metrics import engagement_metrics
+    from drivetrain_ctrl.sim.metrics import engagement_metrics
 
     ratio = float(dt.model.data.ratio[[c.name for c in dt.model.chain.couplings].index("axle")])
     assert ratio > 1.0

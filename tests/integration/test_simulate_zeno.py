@@ -9,11 +9,11 @@ import re
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import builtin_scenarios
-from drivetrain_ctrl.simulate import SimulationOptions, ZenoError, simulate
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import builtin_scenarios
+from drivetrain_ctrl.sim.simulator import SimulationOptions, ZenoError, simulate
 
 ZENO_MSG = re.compile(r"at t = ([0-9.eE+-]+) s on element '([^']+)'")
 
@@ -99,8 +99,8 @@ def test_zeno_guard_on_backlash_rattle_of_tip_in() -> None:
 def _toggled_capacity_run(**opts: object):  # type: ignore[no-untyped-def]
     """Two-body clutch whose capacity input toggles 50 -> 0 -> 50 ... every 0.1 s (10 switches,
     each one an event at an input breakpoint: stuck -> open -> stuck ...)."""
-    from drivetrain_ctrl import signals as sg
-    from drivetrain_ctrl.chain import two_body_clutch
+    from drivetrain_ctrl.core import signals as sg
+    from drivetrain_ctrl.plant.chain import two_body_clutch
 
     m = Model(two_body_clutch(0.2, 1.0, capacity="cap"))
     ts, vs = [0.0], [50.0]
@@ -145,9 +145,9 @@ def test_relay_sliding_mode_is_a_real_zeno_case_at_default_settings() -> None:
     controller, within the milliseconds the switching takes to accumulate."""
     import control
 
-    from drivetrain_ctrl.chain import Spring
-    from drivetrain_ctrl.closedloop import Controller
-    from drivetrain_ctrl.signals import constant
+    from drivetrain_ctrl.control.blocks import Controller
+    from drivetrain_ctrl.core.signals import constant
+    from drivetrain_ctrl.plant.chain import Spring
 
     ch = Chain(
         (Body("b1", 1.0, torque_input="torque"), Body("b2", 1.0)),
@@ -178,9 +178,10 @@ def test_guard_crossings_that_repeat_at_one_instant_stop_the_run(
     Zeno guard at once, naming the element, not by ``max_steps`` much later. Reproduced with the
     bug fixed in 10044e2: a mu(slip) table with a bound at zero slip (each return to zero slip
     entered a region below 0 and left it at once)."""
-    import drivetrain_ctrl.model as model_mod
-    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, PwlTable
-    from drivetrain_ctrl.model import Model
+    import drivetrain_ctrl.plant.model as model_mod
+    from drivetrain_ctrl.core.tables import PwlTable
+    from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
+    from drivetrain_ctrl.plant.model import Model
 
     orig = model_mod._pwl_clamped
 

@@ -18,10 +18,11 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, LaggedSource, PwlTable, Spring
-from drivetrain_ctrl.drivetrain import full_model, reduced_model
-from drivetrain_ctrl.model import Mode, Model
-from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.core.tables import PwlTable
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, LaggedSource, Spring
+from drivetrain_ctrl.plant.drivetrain import full_model, reduced_model
+from drivetrain_ctrl.plant.model import Mode, Model
+from drivetrain_ctrl.plant.params import default_params
 
 EPS = np.finfo(float).eps
 H = 1e-4  # step along a direction of unit size (speeds in rad/s or m/s, twists in 0.1 rad)

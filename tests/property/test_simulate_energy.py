@@ -9,9 +9,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivetrain_ctrl.params import DrivetrainParams, default_params
-from drivetrain_ctrl.scenarios import builtin_scenarios
-from drivetrain_ctrl.simulate import SimulationResult, simulate
+from drivetrain_ctrl.plant.params import DrivetrainParams, default_params
+from drivetrain_ctrl.scenarios.scenario import builtin_scenarios
+from drivetrain_ctrl.sim.simulator import SimulationResult, simulate
 
 #: parameters perturbed (multiplicative factors in [0.7, 1.3]); "k12" scales the whole pedal map
 FACTORS = (

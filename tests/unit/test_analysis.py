@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from drivetrain_ctrl import analysis as A
 from drivetrain_ctrl import linear as L
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.closedloop import Actuator, law6_controller, pi_controller
-from drivetrain_ctrl.drivetrain import reduced_model
-from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.control.blocks import Actuator
+from drivetrain_ctrl.control.laws import law6_controller, pi_controller
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.linear import margins as A
+from drivetrain_ctrl.plant.drivetrain import reduced_model
+from drivetrain_ctrl.plant.params import default_params
 
 P = default_params()
 

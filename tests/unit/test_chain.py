@@ -8,17 +8,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.chain import (
+from drivetrain_ctrl.core.tables import PwlTable
+from drivetrain_ctrl.plant.chain import (
     Body,
     Chain,
     Coupling,
     Friction,
     LaggedSource,
-    PwlTable,
     Spring,
     two_body_clutch,
 )
-from drivetrain_ctrl.model import Model
+from drivetrain_ctrl.plant.model import Model
 
 
 def bodies(n: int, **kw) -> tuple[Body, ...]:
@@ -254,9 +254,9 @@ def test_two_body_clutch() -> None:
 
 
 def test_input_units_are_checked_and_reach_the_model_and_dataframe() -> None:
-    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction
-    from drivetrain_ctrl.model import Model
-    from drivetrain_ctrl.simulate import simulate
+    from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
+    from drivetrain_ctrl.plant.model import Model
+    from drivetrain_ctrl.sim.simulator import simulate
 
     bodies = (Body("a", 1.0, torque_input="T"), Body("b", 2.0))
     cps = (Coupling("c", friction=Friction(capacity_input="cap", name="c")),)
@@ -330,9 +330,9 @@ def test_numpy_numbers_are_numbers() -> None:
 
 
 def test_model_checks_modes_and_shapes() -> None:
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.model import Mode
-    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.model import Mode
+    from drivetrain_ctrl.plant.params import default_params
 
     dt = Drivetrain(default_params())
     m = dt.model
@@ -364,8 +364,8 @@ def test_model_checks_modes_and_shapes() -> None:
 
 
 def test_drivetrain_arguments_are_checked() -> None:
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.params import default_params
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.params import default_params
 
     p = default_params()
     with pytest.raises(TypeError, match="params = None: must be a DrivetrainParams"):
@@ -385,10 +385,10 @@ def test_drivetrain_arguments_are_checked() -> None:
 def test_arrays_and_numpy_values_still_work_where_they_did() -> None:
     """The input checks keep what worked: knots as arrays, a Mode from a result row, 0-d arrays
     as numbers, vectorised speed conversion."""
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.model import Mode
-    from drivetrain_ctrl.params import default_params
-    from drivetrain_ctrl.simulate import SimulationOptions
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.model import Mode
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.sim.simulator import SimulationOptions
 
     sp = Spring(np.array([0.0, 0.1, 0.2]), np.array([0.0, 10.0, 50.0]))
     assert sp == Spring((0.0, 0.1, 0.2), (0.0, 10.0, 50.0))

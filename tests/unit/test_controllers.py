@@ -12,7 +12,7 @@ import control
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.controllers import (
+from drivetrain_ctrl.control.laws import (
     _KEYS,
     ControllerError,
     ControllerSpec,
@@ -21,9 +21,10 @@ from drivetrain_ctrl.controllers import (
     controller_from_dict,
     load_controller,
 )
-from drivetrain_ctrl.loading import is_finite_real, load_toml_as, reject_unknown
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.signals import constant
+from drivetrain_ctrl.core.registry import load_toml_as
+from drivetrain_ctrl.core.signals import constant
+from drivetrain_ctrl.core.validate import is_finite_real, reject_unknown
+from drivetrain_ctrl.plant.params import default_params
 
 P = default_params()
 

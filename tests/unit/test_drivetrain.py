@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.drivetrain import (
+from drivetrain_ctrl.core.units import GRAVITY
+from drivetrain_ctrl.plant.drivetrain import (
     Drivetrain,
     full_chain,
     full_model,
@@ -16,8 +17,7 @@ from drivetrain_ctrl.drivetrain import (
     reduced_figures,
     reduced_model,
 )
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.units import GRAVITY
+from drivetrain_ctrl.plant.params import default_params
 
 P = default_params()
 

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.drivetrain import full_model
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import load_scenario
+from drivetrain_ctrl.plant.drivetrain import full_model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import load_scenario
+from drivetrain_ctrl.sim.run import run_scenario
 
 
 def _rho(J: np.ndarray) -> float:
@@ -50,7 +51,7 @@ def test_spectral_radius_bound_is_tight_on_the_drivetrain_mode_jacobians() -> No
     p = default_params()
     sc = load_scenario("engage-ramp")
     dt = full_model(p, gear=sc.gear, slope=sc.slope)
-    res = sc.run(dt)
+    res = run_scenario(sc, dt)
     m = dt.model
     seen = set()
     checked = 0

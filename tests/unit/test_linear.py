@@ -11,10 +11,14 @@ import pytest
 
 from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import linear as L
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.closedloop import law6_controller, pi_controller
-from drivetrain_ctrl.drivetrain import full_model, reduced_figures, reduced_model
-from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.control import Actuator, actuator_tf, law6_loop_closed_form
+from drivetrain_ctrl.control.laws import law6_controller, pi_controller
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.linear.clutch import _judder_threshold
+from drivetrain_ctrl.linear.operating_point import _reduction
+from drivetrain_ctrl.plant.drivetrain import full_model, reduced_figures, reduced_model
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.sim.run import run_scenario
 
 P = default_params()
 XC = 0.0725  # inside the pedal-map piece [0.07, 0.075] (a knot has two slopes)
@@ -105,11 +109,11 @@ def test_locked_trim_errors():
 
 
 def test_operating_point_from_result_holds_mode():
-    from drivetrain_ctrl.scenarios import builtin_scenarios
+    from drivetrain_ctrl.scenarios.scenario import builtin_scenarios
 
     sc = builtin_scenarios()["engage-ramp"]
     dt = sc.drivetrain(P, kind="reduced")
-    res = sc.run(dt, t_end=1.2)
+    res = run_scenario(sc, dt, t_end=1.2)
     op = L.operating_point_from_result(res, 1.0, drivetrain=dt)
     k = int(np.searchsorted(res.t, 1.0, side="right") - 1)
     assert op.mode.fm == tuple(int(v) for v in res.fm[k])
@@ -178,7 +182,7 @@ def test_analytic_jacobian_matches_finite_differences_inside_the_mode(name):
     assert np.max(np.abs(parts.clutch_dx - g_fd)) < 1e-5 * (np.max(np.abs(g_fd)) + 1.0)
     # the reduced system in the mode's own coordinates
     sysr = L.linearise(op)
-    red = L._reduction(m, mode, keep_positions=False)
+    red = _reduction(m, mode, keep_positions=False)
     Az = np.zeros((sysr.nstates, sysr.nstates))
     for j in range(sysr.nstates):
         dz = red.T[:, j] * 1e-6
@@ -229,13 +233,13 @@ def test_law6_loop_equals_closed_form(kind):
     op = _slip(kind)
     loop = L.clutch_loop(op, _law6(kind))
     act = P.actuator
-    closed = L.law6_loop_closed_form(
+    closed = law6_loop_closed_form(
         k_r=P.law6.k_r,
         dk13_dxc=_pedal_slope(P, XC),
         mu=1.0,
         J1=P.engine.J1,
         b1_eff=P.engine.b1,  # linear engine map: C_G does not depend on omega_1
-        actuator=L.Actuator(act.omega_a, act.delta_a),
+        actuator=Actuator(act.omega_a, act.delta_a),
     )
     assert np.allclose(_resp(loop.L, W), _resp(closed, W), rtol=1e-8, atol=0)
     # the pieces
@@ -415,7 +419,7 @@ def test_no_matplotlib_import_at_module_level():
     import ast
     import inspect
 
-    from drivetrain_ctrl import analysis
+    from drivetrain_ctrl.linear import margins as analysis
 
     for mod in (L, analysis):
         tree = ast.parse(inspect.getsource(mod))
@@ -426,13 +430,13 @@ def test_no_matplotlib_import_at_module_level():
 
 
 def test_every_visited_mode_is_linearised_inside_its_interval() -> None:
-    from drivetrain_ctrl.linear import linearise_visited_modes
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     sc = load_scenario("paper-start")
     for kind in ("reduced", "full"):
         dtr = sc.drivetrain(default_params(), kind=kind)
-        res = sc.run(dtr, controller="paper")
+        res = run_scenario(sc, dtr, controller="paper")
         vm = linearise_visited_modes(res, drivetrain=dtr)
         labels = [v.label for v in vm]
         assert len(labels) == len(set(labels)) >= 3
@@ -471,11 +475,11 @@ def test_judder_threshold_from_a_built_loop_is_the_same():
     and constant-mu L): the same result as the public function, which builds the loop itself."""
     op, ctrl = _slip(), _law6()
     loop = L.clutch_loop(op, ctrl)
-    assert L._judder_threshold(loop.op, loop.engine, loop.L) == L.judder_threshold(op, ctrl)
-    assert L._judder_threshold(op, L.engine_side(op), None) == L.judder_threshold(op, None)
+    assert _judder_threshold(loop.op, loop.engine, loop.L) == L.judder_threshold(op, ctrl)
+    assert _judder_threshold(op, L.engine_side(op), None) == L.judder_threshold(op, None)
     # a loop with a friction slope is another loop: another threshold
     lf = L.clutch_loop(op, ctrl, mu_slope=-1e-3)
-    assert L._judder_threshold(op, lf.engine, lf.L) != L.judder_threshold(op, ctrl)
+    assert _judder_threshold(op, lf.engine, lf.L) != L.judder_threshold(op, ctrl)
 
 
 def test_linearise_rejects_a_bare_string():
@@ -526,11 +530,9 @@ def test_linearise_visited_modes_rejects_a_non_number(bad):
 
 def test_actuator_none_is_a_type_error():
     with pytest.raises(TypeError, match="actuator: an Actuator is needed, got NoneType"):
-        L.actuator_tf(None)  # type: ignore[arg-type]
+        actuator_tf(None)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="actuator: an Actuator is needed, got NoneType"):
-        L.law6_loop_closed_form(
-            k_r=1e-3, dk13_dxc=-3000.0, mu=1.0, J1=0.2, b1_eff=0.1, actuator=None
-        )  # type: ignore[arg-type]
+        law6_loop_closed_form(k_r=1e-3, dk13_dxc=-3000.0, mu=1.0, J1=0.2, b1_eff=0.1, actuator=None)  # type: ignore[arg-type]
 
 
 def test_rebuild_operating_point_needs_params():
@@ -558,7 +560,7 @@ def test_operating_points_reject_negative_brake_and_pedal_outside_the_map():
 
 
 def test_natural_frequency_damping_and_oscillatory_poles() -> None:
-    from drivetrain_ctrl.linear import natural_frequency_damping, oscillatory_poles
+    from drivetrain_ctrl.linear.linearisation import natural_frequency_damping, oscillatory_poles
 
     wn, zeta = 2 * math.pi * 50.0, 0.1
     p = complex(-zeta * wn, wn * math.sqrt(1 - zeta**2))
@@ -603,9 +605,9 @@ def test_gang_of_four_is_consistent(sampled):
 )  # fmt: skip
 def test_law6_closed_form_names_a_bad_argument(field, value, msg):
     kw = dict(k_r=1e-3, dk13_dxc=-3000.0, mu=1.0, J1=0.2, b1_eff=0.1,
-              actuator=L.Actuator(P.actuator.omega_a, P.actuator.delta_a))  # fmt: skip
+              actuator=Actuator(P.actuator.omega_a, P.actuator.delta_a))  # fmt: skip
     with pytest.raises(ValueError, match=msg):
-        L.law6_loop_closed_form(**{**kw, field: value})
+        law6_loop_closed_form(**{**kw, field: value})
 
 
 # ------------------------------------------------------------------------------------------------
@@ -614,7 +616,7 @@ def test_law6_closed_form_names_a_bad_argument(field, value, msg):
 
 
 def test_wrong_op_and_controller_types_are_named() -> None:
-    from drivetrain_ctrl import analysis as A
+    from drivetrain_ctrl.linear import margins as A
 
     op = _slip()
     for fn in (L.clutch_loop, A.clutch_loop_margins):
@@ -649,7 +651,7 @@ def test_linearise_checks_its_options(kw: dict[str, object], exc: type, match: s
 
 
 def test_locked_trim_that_goes_non_finite_is_an_error() -> None:
-    from drivetrain_ctrl.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
 
     for kind in ("full", "reduced"):
         with pytest.raises(ValueError, match=r"vehicle_speed_kmh = 1e\+300: no locked steady"):
@@ -657,12 +659,12 @@ def test_locked_trim_that_goes_non_finite_is_an_error() -> None:
 
 
 def test_operating_point_from_result_rejects_another_drivetrain() -> None:
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     sc = load_scenario("engage-ramp")
     dt = Drivetrain(P, kind="reduced")
-    res = sc.run(dt, t_end=0.5)
+    res = run_scenario(sc, dt, t_end=0.5)
     assert L.operating_point_from_result(res, 0.3, drivetrain=dt).kind == "reduced"
     for other in (Drivetrain(P, kind="full"), Drivetrain(P, kind="reduced", gear=2)):
         with pytest.raises(ValueError, match=r"not the drivetrain of the result"):

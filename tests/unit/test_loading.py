@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from drivetrain_ctrl.controllers import ControllerError, load_controller
-from drivetrain_ctrl.scenarios import ScenarioError, load_scenario
+from drivetrain_ctrl.control.laws import ControllerError, load_controller
+from drivetrain_ctrl.scenarios.scenario import ScenarioError, load_scenario
 
 
 @pytest.mark.parametrize(

@@ -17,19 +17,19 @@ import math
 import numpy as np
 import pytest
 
-from drivetrain_ctrl import signals as sg
-from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.metrics import (
+from drivetrain_ctrl.core import signals as sg
+from drivetrain_ctrl.core.serialize import json_ready, round_sig
+from drivetrain_ctrl.plant.chain import two_body_clutch
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.sim.metrics import (
     METRIC_KEYS,
     engagement_metrics,
     filtered_jerk,
     jerk,
-    json_ready,
-    round_sig,
     state_accelerations,
 )
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.simulate import SimulationResult, simulate
+from drivetrain_ctrl.sim.run import run_scenario
+from drivetrain_ctrl.sim.simulator import SimulationResult, simulate
 
 J1, J2, T, W0 = 0.2, 0.3, 30.0, 100.0
 
@@ -194,7 +194,7 @@ def test_inconsistent_decisions_are_reported_not_silent(monkeypatch: pytest.Monk
     taken): ``simulate`` warns, and the metrics carry the count and a note."""
     import dataclasses
 
-    from drivetrain_ctrl import simulate as S
+    from drivetrain_ctrl.sim import simulator as S
 
     res = run(40.0)
     m = metrics(res)
@@ -218,12 +218,12 @@ def test_inconsistent_decisions_are_reported_not_silent(monkeypatch: pytest.Monk
 
 
 def test_misspelt_names_are_errors_while_absent_defaults_give_none() -> None:
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.params import default_params
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     dt = Drivetrain(default_params(), kind="reduced")
-    res = load_scenario("engage-ramp").run(dt, t_end=0.3)
+    res = run_scenario(load_scenario("engage-ramp"), dt, t_end=0.3)
     for kw in ({"vehicle": "v_vehicel"}, {"engine": "omega_engin"}, {"clutch": "clutc"}):
         ((arg, val),) = kw.items()
         with pytest.raises(ValueError, match=rf"engagement_metrics: {arg} = '{val}': not in the"):

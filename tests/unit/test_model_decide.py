@@ -8,10 +8,10 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.chain import two_body_clutch
-from drivetrain_ctrl.drivetrain import full_model
-from drivetrain_ctrl.model import Model
-from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.plant.chain import two_body_clutch
+from drivetrain_ctrl.plant.drivetrain import full_model
+from drivetrain_ctrl.plant.model import Model
+from drivetrain_ctrl.plant.params import default_params
 
 inertia = st.floats(0.01, 5.0)
 
@@ -189,7 +189,7 @@ def test_full_drivetrain_at_rest_decides_all_together() -> None:
 
 
 def _paper_model(j, k12: float, k23: float) -> Model:
-    from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, Spring
+    from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, Spring
 
     return Model(
         Chain(

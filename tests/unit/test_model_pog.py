@@ -10,10 +10,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from drivetrain_ctrl import kernels as K
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, Spring
-from drivetrain_ctrl.drivetrain import full_model, reduced_model
-from drivetrain_ctrl.model import Mode, Model
-from drivetrain_ctrl.params import default_params
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, Spring
+from drivetrain_ctrl.plant.drivetrain import full_model, reduced_model
+from drivetrain_ctrl.plant.model import Mode, Model
+from drivetrain_ctrl.plant.params import default_params
 
 
 @functools.cache
@@ -209,7 +209,7 @@ def test_all_slip_a_is_the_linear_part() -> None:
 
 def test_all_stuck_basis_of_two_body_clutch() -> None:
     """A stuck two-body clutch moves as one body: N = [1, 1]/sqrt(2), L = (J1 + J2)/2."""
-    from drivetrain_ctrl.chain import two_body_clutch
+    from drivetrain_ctrl.plant.chain import two_body_clutch
 
     m = Model(two_body_clutch(0.2, 0.05, capacity=100.0))
     mode = Mode((K.STUCK,), ())

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 import tomli_w
 
-from drivetrain_ctrl.params import (
+from drivetrain_ctrl.core.units import GRAVITY
+from drivetrain_ctrl.plant.params import (
     DEFAULT_SET,
     FRAMES,
     DrivetrainParams,
@@ -28,7 +29,6 @@ from drivetrain_ctrl.params import (
     params_to_dict,
     save_params,
 )
-from drivetrain_ctrl.units import GRAVITY
 
 
 @pytest.fixture(scope="module")

@@ -13,15 +13,15 @@ import math
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.drivetrain import Drivetrain, full_model
-from drivetrain_ctrl.model import Mode
-from drivetrain_ctrl.params import DrivetrainParams, default_params
-from drivetrain_ctrl.reference import (
+from drivetrain_ctrl.core.units import GRAVITY
+from drivetrain_ctrl.plant.drivetrain import Drivetrain, full_model
+from drivetrain_ctrl.plant.model import Mode
+from drivetrain_ctrl.plant.params import DrivetrainParams, default_params
+from drivetrain_ctrl.testing.reference import (
     FRICTION_MODE_NAMES,
     full_reference_rhs,
     full_reference_stuck_torques,
 )
-from drivetrain_ctrl.units import GRAVITY
 
 FALLING_MU = {"x": [0.0, 10.0, 50.0, 200.0], "y": [1.0, 0.95, 0.85, 0.8]}
 

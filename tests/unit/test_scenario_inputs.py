@@ -7,14 +7,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from drivetrain_ctrl.params import default_params
-from drivetrain_ctrl.scenarios import (
+from drivetrain_ctrl.core.signals import constant, step
+from drivetrain_ctrl.plant.params import default_params
+from drivetrain_ctrl.scenarios.scenario import (
     ScenarioError,
     idle_throttle,
     load_scenario,
     scenario_from_dict,
 )
-from drivetrain_ctrl.signals import constant, step
+from drivetrain_ctrl.sim.run import run_scenario
 
 P = default_params()
 SC = load_scenario("paper-start", params=P)
@@ -30,7 +31,7 @@ def test_pedal0_outside_the_actuator_stroke_is_rejected() -> None:
     # checked where it is used: in the run, not when the controller is built
     assert sc.make_controller(dt, "paper").name == "paper"
     with pytest.raises(ScenarioError, match=r"pedal0 = .*actuator stroke"):
-        sc.run(dt, controller="paper")
+        run_scenario(sc, dt, controller="paper")
     SC.check_pedal0(P)  # the built-in value is fine
     dataclasses.replace(SC, pedal0=act.x_max).check_pedal0(P)
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivetrain_ctrl.signals import (
+from drivetrain_ctrl.core.signals import (
     Signal,
     Sine,
     constant,

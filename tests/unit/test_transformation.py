@@ -13,8 +13,8 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from drivetrain_ctrl.chain import Body, Chain, Coupling, Friction, Spring
-from drivetrain_ctrl.model import Model
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, Spring
+from drivetrain_ctrl.plant.model import Model
 
 # -- the paper's matrices ------------------------------------------------------------------------
 

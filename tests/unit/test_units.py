@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from drivetrain_ctrl import units
+from drivetrain_ctrl.core import units
 
 
 def test_gravity_is_the_rounded_value() -> None:

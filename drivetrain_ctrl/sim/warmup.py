@@ -12,16 +12,17 @@ import time
 import control
 import numpy as np
 
+from ..control.blocks import Controller
+from ..core.signals import constant
+from ..plant.chain import Body, Chain
+from ..plant.model import Model
+from ..plant.params import default_params
+from ..scenarios.scenario import load_scenario
+from .simulator import SimulationOptions, simulate
+
 
 def warmup() -> float:
     """Run tiny open- and closed-loop simulations; returns the wall time [s]."""
-    from .chain import Body, Chain
-    from .closedloop import Controller
-    from .model import Model
-    from .params import default_params
-    from .scenarios import load_scenario
-    from .signals import constant
-    from .simulate import SimulationOptions, simulate
 
     tic = time.perf_counter()
     sc = load_scenario("engage-ramp")

@@ -48,16 +48,17 @@ from __future__ import annotations
 
 import difflib
 import warnings
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import control
 import numpy as np
 
-from .closedloop import Actuator, Controller, LatchRamp
-from .loading import is_finite_real, load_builtin_or_toml, reject_unknown
-from .signals import Signal
+from ..core.registry import load_builtin_or_toml
+from ..core.signals import Signal
+from ..core.validate import finite_float, is_finite_real, positive_float, reject_unknown
+from .blocks import Actuator, Controller, LatchRamp, actuator_tf
 
 __all__ = [
     "UnstableLoopWarning",
@@ -284,7 +285,6 @@ def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
     the sample period and the transport delay is ``z^-d``. A first check used by :meth:`build`;
     the linear-analysis module gives the full picture (slip-dependent mu, driveline coupling).
     """
-    from .linear import law6_loop_closed_form  # local: linear imports closedloop, metrics, ...
 
     pm = params.clutch.pedal_map
     x0 = params.law6.x_r0 if spec.x_r0 is None else spec.x_r0
@@ -353,3 +353,116 @@ def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:
     return load_builtin_or_toml(
         source, b, controller_from_dict, what="controller", error=ControllerError
     )
+
+
+def law6_controller(
+    params: Any,
+    *,
+    reference: Signal,
+    engine_state: str = "omega_engine",
+    driven_state: str = "omega_primary",
+    engage_rate: float | None = 0.05,
+    start_time: float | None = None,
+) -> Controller:
+    """The paper's law (6): ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``.
+
+    ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
+    ``params.actuator`` with the stroke as saturation. When the clutch locks, the pedal is ramped
+    at ``engage_rate`` [m/s] (> 0) to fully engaged (``None``: no latch). A shortcut for
+    ``ControllerSpec(name="law6", law="paper").build(...)``
+    (:mod:`drivetrain_ctrl.controllers`).
+    """
+    return _from_spec(
+        "law6_controller",
+        params,
+        dict(name="law6", law="paper"),
+        reference=reference,
+        engage_rate=engage_rate,
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
+    )
+
+
+def _from_spec(
+    fn: str,
+    params: Any,
+    fields: dict[str, Any],
+    *,
+    reference: Signal,
+    engage_rate: float | None,
+    start_time: float | None,
+    engine_state: str,
+    driven_state: str,
+) -> Controller:
+    """Build the :class:`~drivetrain_ctrl.controllers.ControllerSpec` of a shortcut; its errors
+    name the shortcut's argument (``engage_rate``, ``dt``) beside the spec's field."""
+
+    if engage_rate is not None:
+        fields = {**fields, "engage_rate_m_s": engage_rate}
+    try:
+        spec = ControllerSpec(**fields)
+    except ControllerError as exc:
+        msg = str(exc)
+        for arg, field_name in (("dt", "sample_period_s"), ("engage_rate", "engage_rate_m_s")):
+            msg = msg.replace(field_name, f"{arg} ({field_name})")
+        raise ValueError(f"{fn}: {msg}") from None
+    c = spec.build(
+        params,
+        reference=reference,
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
+    )
+    return c if engage_rate is not None else replace(c, latch=None)
+
+
+def pi_controller(
+    params: Any,
+    *,
+    reference: Signal,
+    kp: float,
+    ki: float,
+    dt: float | None = None,
+    delay_samples: int = 0,
+    engine_state: str = "omega_engine",
+    driven_state: str = "omega_primary",
+    engage_rate: float | None = 0.05,
+    start_time: float | None = None,
+) -> Controller:
+    """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``,
+    with back-calculation anti-windup; continuous, or sampled every ``dt`` [s] (forward-Euler
+    integrator) with ``delay_samples``; the latch as in :func:`law6_controller`. A shortcut for
+    ``ControllerSpec(law="pi", ...).build``.
+    """
+    return _from_spec(
+        "pi_controller",
+        params,
+        dict(
+            name="pi",
+            law="pi",
+            kp=kp,
+            ki=ki,
+            sample_period_s=dt,
+            delay_samples=delay_samples,
+        ),
+        reference=reference,
+        engage_rate=engage_rate,
+        start_time=start_time,
+        engine_state=engine_state,
+        driven_state=driven_state,
+    )
+
+
+def law6_loop_closed_form(
+    *, k_r: float, dk13_dxc: float, mu: float, J1: float, b1_eff: float, actuator: Actuator
+) -> control.TransferFunction:
+    """Closed form of law (6)'s loop with constant mu:
+    ``L(s) = k_r |k13'(x_c)| mu A(s) / (J_1 s + b_1')`` (units: k_r [m s/rad], k13' [N m/m],
+    J_1 [kg m^2], b_1' [N m s/rad]; L dimensionless). TypeError if ``actuator`` is not an
+    :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    if not isinstance(actuator, Actuator):
+        raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
+    kr, j1 = positive_float("k_r", k_r), positive_float("J1", J1)
+    g = kr * abs(finite_float("dk13_dxc", dk13_dxc)) * finite_float("mu", mu)
+    return control.tf([g], [j1, finite_float("b1_eff", b1_eff)]) * actuator_tf(actuator)

@@ -25,10 +25,11 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from . import kernels as K
-from .loading import is_finite_real
-from .model import Model
-from .signals import Signal, pack_signals
+from .. import kernels as K
+from ..control.blocks import require_controller
+from ..core.signals import Signal, constant, pack_signals
+from ..core.validate import is_finite_real
+from ..plant.model import Model
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -324,7 +325,7 @@ class SimulationResult:
 
     def plot(self, path: str | None = None) -> Any:
         """Overview figure (speeds, torques, modes); saved to ``path`` if given. Returns the figure."""
-        from .plotting import plot_simulation
+        from ..reporting.figures import plot_simulation
 
         return plot_simulation(self, path)
 
@@ -455,8 +456,6 @@ def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Sig
     for n in model.input_names:
         s = inputs[n]
         if not isinstance(s, Signal):
-            from .signals import constant
-
             try:
                 s = constant(s)  # type: ignore[arg-type]
             except (TypeError, ValueError) as exc:
@@ -507,8 +506,6 @@ def simulate(
         if not is_finite_real(v):
             raise ValueError(f"{nm} = {v!r}: must be a finite number [s]")
     if controller is not None:
-        from .closedloop import require_controller  # python-control only for closed loops
-
         require_controller(controller, "simulate")
     try:
         x0 = np.array(x0, dtype=float)

@@ -1,53 +1,14 @@
-"""Loading a named item: a built-in by name, or a TOML file (scenarios, controllers); the
-input checks shared by the loaders (unknown keys, finite numbers)."""
+"""Loading a named item: a built-in by name, or a TOML file (parameter sets, scenarios, controllers)."""
 
 from __future__ import annotations
 
 import difflib
-import math
 import tomllib
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
-import numpy as np
-
-__all__ = ["load_builtin_or_toml", "load_toml_as", "reject_unknown", "is_real", "is_finite_real"]
-
 T = TypeVar("T")
-
-
-def is_real(value: object) -> bool:
-    """True if ``value`` is a real number: an ``int``, ``float``, NumPy integer or NumPy floating
-    scalar (e.g. ``np.float32(0.5)``), not a bool (finite or not: see :func:`is_finite_real`)."""
-    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
-        value, bool | np.bool_
-    )
-
-
-def is_finite_real(value: object) -> bool:
-    """True if ``value`` is a finite real number (:func:`is_real`) or a 0-d numeric array
-    holding one, not NaN or +-inf."""
-    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
-        value = value[()]  # a 0-d array holds one number
-    if not is_real(value):
-        return False
-    try:
-        return math.isfinite(float(value))  # type: ignore[arg-type]
-    except OverflowError:  # an int too large for a float
-        return False
-
-
-def reject_unknown(
-    where: str, got: Collection[str], allowed: Collection[str], *, error: type[ValueError]
-) -> None:
-    """Raise ``error`` naming the first (sorted) key of ``got`` not in ``allowed``, prefixed by
-    ``where`` (e.g. ``"initial."``), with a did-you-mean hint or the allowed keys."""
-    allowed_sorted = sorted(allowed)
-    for k in sorted(set(got) - set(allowed)):
-        close = difflib.get_close_matches(k, allowed_sorted, n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {allowed_sorted}"
-        raise error(f"{where}{k}: unknown key{hint}")
 
 
 def load_builtin_or_toml(

@@ -26,9 +26,15 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from .loading import is_real
+from ..core.tables import PwlTable
+from ..core.validate import (
+    check_finite,
+    check_name,
+    check_sequence,
+    check_type,
+    is_real,
+    store_knots,
+)
 
 __all__ = [
     "PwlTable",
@@ -46,82 +52,6 @@ __all__ = [
 FRICTION_MODES: tuple[str, str, str, str] = ("stuck", "slip+", "slip-", "open")
 #: mode names of a spring with backlash: negative contact, gap, positive contact
 BACKLASH_MODES: tuple[str, str, str] = ("contact-", "gap", "contact+")
-
-
-def _name(owner: str, field_: str, value: object) -> None:
-    """A name: a non-empty string."""
-    if not isinstance(value, str) or not value.strip():
-        raise ValueError(f"{owner}.{field_} = {value!r}: must be a non-empty string")
-
-
-def _seq(owner: str, field_: str, value: object) -> None:
-    """A tuple, list or 1-d array (of knots, names, elements)."""
-    if isinstance(value, np.ndarray) and value.ndim == 1:
-        return
-    if not isinstance(value, (tuple, list)):
-        raise TypeError(f"{owner}.{field_} = {value!r}: must be a tuple")
-
-
-def _knots(obj: object, owner: str) -> None:
-    """Store ``obj.x``, ``obj.y`` (a frozen dataclass) as tuples of floats (lists and arrays in)."""
-    for fld in ("x", "y"):
-        v = getattr(obj, fld)
-        _seq(owner, fld, v)
-        if not isinstance(v, tuple):
-            object.__setattr__(obj, fld, tuple(float(a) if is_real(a) else a for a in v))
-
-
-def _of_type(owner: str, field_: str, value: object, cls: type, optional: bool = True) -> None:
-    if (value is None and optional) or isinstance(value, cls):
-        return
-    raise TypeError(
-        f"{owner}.{field_} = {value!r}: must be a {cls.__name__}{' or None' if optional else ''}"
-    )
-
-
-def _finite(
-    owner: str, name: str, value: float, *, lo: float | None = None, strict: bool = False
-) -> None:
-    if not is_real(value):
-        raise TypeError(f"{owner}.{name} must be a real number, got {value!r}")
-    if not math.isfinite(value):
-        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
-    if lo is not None and (value <= lo if strict else value < lo):
-        raise ValueError(f"{owner}.{name} = {value!r}: must be {'>' if strict else '>='} {lo}")
-
-
-@dataclass(frozen=True, slots=True)
-class PwlTable:
-    """Piecewise-linear table ``y(x)``, clamped to the end values outside ``[x_0, x_last]``.
-
-    ``x`` strictly increasing. A single knot is a constant. Knots are breakpoints: the simulator
-    never integrates across one.
-    """
-
-    x: tuple[float, ...]
-    y: tuple[float, ...]
-    name: str = "table"
-
-    def __post_init__(self) -> None:
-        _knots(self, self.name)
-        if len(self.x) != len(self.y) or not self.x:
-            raise ValueError(
-                f"{self.name}: x and y must be non-empty and of equal length, got {len(self.x)} "
-                f"x and {len(self.y)} y"
-            )
-        for i, (a, b) in enumerate(zip(self.x, self.y, strict=True)):
-            _finite(self.name, f"x[{i}]", a)
-            _finite(self.name, f"y[{i}]", b)
-        for i in range(1, len(self.x)):
-            if not self.x[i] > self.x[i - 1]:
-                raise ValueError(
-                    f"{self.name}: x must be strictly increasing, x[{i}]={self.x[i]} <= "
-                    f"x[{i - 1}]={self.x[i - 1]}"
-                )
-
-    def __call__(self, v: float) -> float:
-        """The table at ``v``: linear between knots, the end values beyond them (NaN for NaN)."""
-        return float(np.interp(v, self.x, self.y))
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,29 +72,29 @@ class Spring:
     name: str = "spring"
 
     def __post_init__(self) -> None:
-        _knots(self, self.name)
+        store_knots(self, self.name)
         if len(self.x) != len(self.y) or len(self.x) < 2:
             raise ValueError(f"{self.name}: needs at least two knots (x, y) of equal length")
-        _finite(self.name, "x[0]", self.x[0])
-        _finite(self.name, "y[0]", self.y[0])
+        check_finite(self.name, "x[0]", self.x[0])
+        check_finite(self.name, "y[0]", self.y[0])
         if self.x[0] != 0.0 or self.y[0] != 0.0:
             raise ValueError(
                 f"{self.name}: first knot must be (0, 0), got ({self.x[0]}, {self.y[0]})"
             )
         for i in range(1, len(self.x)):
-            _finite(self.name, f"x[{i}]", self.x[i])
-            _finite(self.name, f"y[{i}]", self.y[i])
+            check_finite(self.name, f"x[{i}]", self.x[i])
+            check_finite(self.name, f"y[{i}]", self.y[i])
             if not self.x[i] > self.x[i - 1]:
                 raise ValueError(
                     f"{self.name}: x must be strictly increasing at x[{i}]={self.x[i]}"
                 )
-        _finite(self.name, "backlash", self.backlash, lo=0.0)
+        check_finite(self.name, "backlash", self.backlash, lo=0.0)
 
     @classmethod
     def linear(cls, stiffness: float, *, backlash: float = 0.0, name: str = "spring") -> Spring:
         """Linear spring of ``stiffness`` [N m/rad or N/m] with half gap ``backlash``."""
-        _finite(name, "stiffness", stiffness, lo=0.0, strict=True)
-        _finite(name, "backlash", backlash, lo=0.0)
+        check_finite(name, "stiffness", stiffness, lo=0.0, strict=True)
+        check_finite(name, "backlash", backlash, lo=0.0)
         return cls((0.0, 1.0), (0.0, float(stiffness)), float(backlash), name)
 
     def torque(self, q: float) -> float:
@@ -203,13 +133,13 @@ class Friction:
     name: str = "friction"
 
     def __post_init__(self) -> None:
-        _name("Friction", "name", self.name)
-        _finite(self.name, "scale", self.scale, lo=0.0)
-        _finite(self.name, "static_ratio", self.static_ratio, lo=1.0)
+        check_name("Friction", "name", self.name)
+        check_finite(self.name, "scale", self.scale, lo=0.0)
+        check_finite(self.name, "static_ratio", self.static_ratio, lo=1.0)
         if self.capacity_input is not None:
-            _name(self.name, "capacity_input", self.capacity_input)
-        _of_type(self.name, "capacity_table", self.capacity_table, PwlTable)
-        _of_type(self.name, "mu_table", self.mu_table, PwlTable)
+            check_name(self.name, "capacity_input", self.capacity_input)
+        check_type(self.name, "capacity_table", self.capacity_table, PwlTable)
+        check_type(self.name, "mu_table", self.mu_table, PwlTable)
         if self.capacity_table is not None and self.capacity_input is None:
             raise ValueError(f"{self.name}: capacity_table needs a capacity_input")
         if self.mu_table is not None:
@@ -257,15 +187,15 @@ class Body:
     input_gain: float = 1.0
 
     def __post_init__(self) -> None:
-        _name("Body", "name", self.name)
-        _finite(self.name, "inertia", self.inertia, lo=0.0, strict=True)
-        _of_type(self.name, "ground_friction", self.ground_friction, Friction)
+        check_name("Body", "name", self.name)
+        check_finite(self.name, "inertia", self.inertia, lo=0.0, strict=True)
+        check_type(self.name, "ground_friction", self.ground_friction, Friction)
         if self.torque_input is not None:
-            _name(self.name, "torque_input", self.torque_input)
-        _finite(self.name, "viscous", self.viscous, lo=0.0)
-        _finite(self.name, "quadratic", self.quadratic, lo=0.0)
-        _finite(self.name, "load", self.load)
-        _finite(self.name, "input_gain", self.input_gain)
+            check_name(self.name, "torque_input", self.torque_input)
+        check_finite(self.name, "viscous", self.viscous, lo=0.0)
+        check_finite(self.name, "quadratic", self.quadratic, lo=0.0)
+        check_finite(self.name, "load", self.load)
+        check_finite(self.name, "input_gain", self.input_gain)
         if self.kind not in ("rotational", "translational"):
             raise ValueError(f"{self.name}.kind = {self.kind!r}: must be rotational|translational")
 
@@ -290,11 +220,11 @@ class Coupling:
     friction: Friction | None = None
 
     def __post_init__(self) -> None:
-        _name("Coupling", "name", self.name)
-        _finite(self.name, "ratio", self.ratio, lo=0.0, strict=True)
-        _finite(self.name, "damper", self.damper, lo=0.0)
-        _of_type(self.name, "spring", self.spring, Spring)
-        _of_type(self.name, "friction", self.friction, Friction)
+        check_name("Coupling", "name", self.name)
+        check_finite(self.name, "ratio", self.ratio, lo=0.0, strict=True)
+        check_finite(self.name, "damper", self.damper, lo=0.0)
+        check_type(self.name, "spring", self.spring, Spring)
+        check_type(self.name, "friction", self.friction, Friction)
         if self.spring is None and self.damper == 0.0 and self.friction is None:
             raise ValueError(f"{self.name}: a coupling needs a spring, a damper or a friction")
 
@@ -315,12 +245,12 @@ class LaggedSource:
     gain_table: PwlTable | None = None
 
     def __post_init__(self) -> None:
-        _name("LaggedSource", "name", self.name)
-        _name(self.name, "body", self.body)
-        _name(self.name, "input", self.input)
-        _finite(self.name, "tau", self.tau, lo=0.0, strict=True)
-        _finite(self.name, "gain", self.gain)
-        _of_type(self.name, "gain_table", self.gain_table, PwlTable)
+        check_name("LaggedSource", "name", self.name)
+        check_name(self.name, "body", self.body)
+        check_name(self.name, "input", self.input)
+        check_finite(self.name, "tau", self.tau, lo=0.0, strict=True)
+        check_finite(self.name, "gain", self.gain)
+        check_type(self.name, "gain_table", self.gain_table, PwlTable)
 
 
 @dataclass(frozen=True, slots=True)
@@ -347,13 +277,13 @@ class Chain:
     def __post_init__(self) -> None:
         for fld, cls in (("bodies", Body), ("couplings", Coupling), ("sources", LaggedSource)):
             seq = getattr(self, fld)
-            _seq("Chain", fld, seq)
+            check_sequence("Chain", fld, seq)
             for i, el in enumerate(seq):
                 if not isinstance(el, cls):
                     raise TypeError(f"Chain.{fld}[{i}] = {el!r}: must be a {cls.__name__}")
-        _seq("Chain", "inputs", self.inputs)
+        check_sequence("Chain", "inputs", self.inputs)
         for i, nm in enumerate(self.inputs):
-            _name("Chain", f"inputs[{i}]", nm)
+            check_name("Chain", f"inputs[{i}]", nm)
         if len(set(self.inputs)) != len(self.inputs):
             raise ValueError(f"Chain.inputs = {self.inputs!r}: names must not repeat")
         if len(self.bodies) < 1:
@@ -446,7 +376,7 @@ def two_body_clutch(
         fr = Friction(capacity_input=capacity, static_ratio=static_ratio, name="clutch")
         inputs: Sequence[str] = (capacity, "torque1")
     else:
-        _finite("two_body_clutch", "capacity", capacity, lo=0.0)
+        check_finite("two_body_clutch", "capacity", capacity, lo=0.0)
         fr = Friction(scale=float(capacity), static_ratio=static_ratio, name="clutch")
         inputs = ("torque1",)
     return Chain(

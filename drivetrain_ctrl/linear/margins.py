@@ -31,19 +31,12 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .closedloop import Actuator, Controller, require_controller
-from .linear import (
-    OperatingPoint,
-    _slip_mode_poles_of,
-    clutch_loop,
-    linearise,
-    natural_frequency_damping,
-    rebuild_operating_point,
-    require_op,
-    trim_tf,
-)
-from .loading import is_finite_real
-from .metrics import json_ready
+from ..control.blocks import Actuator, Controller, require_controller
+from ..core.serialize import json_ready
+from ..core.validate import is_finite_real
+from .clutch import _slip_mode_poles_of, clutch_loop
+from .linearisation import linearise, natural_frequency_damping, trim_tf
+from .operating_point import OperatingPoint, rebuild_operating_point, require_op
 
 __all__ = [
     "Pole",
@@ -192,7 +185,7 @@ class LoopMargins:
     def plot(self, L: Any = None, path: str | None = None) -> Any:
         """Bode diagram of ``L``, ``S`` and ``T`` (if ``L`` is given) beside the closed-loop poles;
         a matplotlib Figure (:func:`drivetrain_ctrl.plotting.plot_loop`), saved to ``path``."""
-        from .plotting import plot_loop
+        from ..reporting.figures import plot_loop
 
         poles = [(p.real, p.imag) for p in self.closed_loop_poles]
 
@@ -370,7 +363,7 @@ class RootLocus:
         """Poles in the complex plane, coloured by the parameter value, one marker per mode of the
         operating point (legend: the clutch's mode and the elements that differ); a matplotlib
         Figure (:func:`drivetrain_ctrl.plotting.plot_root_locus`), saved to ``path`` if given."""
-        from .plotting import plot_root_locus
+        from ..reporting.figures import plot_root_locus
 
         pts = [
             (
@@ -498,7 +491,7 @@ class NyquistData:
     def plot(self, path: str | None = None) -> Any:
         """The curve (and its mirror image) with the critical point -1; a matplotlib Figure
         (:func:`drivetrain_ctrl.plotting.plot_nyquist`), saved to ``path`` if given."""
-        from .plotting import plot_nyquist
+        from ..reporting.figures import plot_nyquist
 
         return plot_nyquist(
             self.real,

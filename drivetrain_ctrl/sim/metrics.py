@@ -21,29 +21,27 @@ spurious huge jerk; such jumps are reported separately (``lurch_m_s2`` at lock-u
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .loading import is_finite_real
-from .model import Mode
-from .units import m_s_to_kmh, rad_s_to_rpm
+from ..core.serialize import json_ready
+from ..core.units import m_s_to_kmh, rad_s_to_rpm
+from ..core.validate import is_finite_real
+from ..plant.model import Mode
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .model import Model
-    from .simulate import SimulationResult
+    from ..plant.model import Model
+    from .simulator import SimulationResult
 
 __all__ = [
-    "SIGNIFICANT_DIGITS",
     "MIN_INTERVAL_S",
     "METRIC_KEYS",
     "engagement_metrics",
     "state_accelerations",
     "filtered_jerk",
     "jerk",
-    "round_sig",
     "json_ready",
 ]
 
@@ -59,9 +57,6 @@ class DrivetrainLike(Protocol):
     @property
     def gear(self) -> int: ...
 
-
-#: significant digits kept for every float of :func:`engagement_metrics`
-SIGNIFICANT_DIGITS: int = 9
 
 #: sample intervals shorter than this [s] are skipped when differencing accelerations (they only
 #: occur at events located to ~1e-13 s, where a difference quotient is round-off)
@@ -116,37 +111,6 @@ AFTER_LOCK_S: float = 1.0
 JERK_FILTER_HZ: float = 10.0
 #: uniform resampling rate [Hz] of the signals behind the windowed figures
 RESAMPLE_HZ: float = 1000.0
-
-
-def round_sig(value: float | None, digits: int = SIGNIFICANT_DIGITS) -> float | None:
-    """``value`` rounded to ``digits`` significant digits; None for None, NaN or +-inf.
-
-    ``-0.0`` becomes ``0.0`` so that the JSON text does not depend on the sign of a zero.
-    """
-    if value is None:
-        return None
-    v = float(value)
-    if not math.isfinite(v):
-        return None
-    if v == 0.0:
-        return 0.0
-    return float(f"{v:.{digits}g}")
-
-
-def json_ready(obj: Any, digits: int = SIGNIFICANT_DIGITS) -> Any:
-    """``obj`` with NumPy scalars converted and every float rounded by :func:`round_sig`
-    (recursively through dicts, lists and tuples; tuples become lists)."""
-    if isinstance(obj, dict):
-        return {str(k): json_ready(v, digits) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [json_ready(v, digits) for v in obj]
-    if isinstance(obj, bool | np.bool_):
-        return bool(obj)
-    if isinstance(obj, int | np.integer):
-        return int(obj)
-    if isinstance(obj, float | np.floating):
-        return round_sig(float(obj), digits)
-    return obj
 
 
 def _mode(res: SimulationResult, i: int) -> Mode:

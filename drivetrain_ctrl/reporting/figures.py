@@ -22,15 +22,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .loading import is_finite_real
-from .units import RPM_TO_RAD_S
+from ..core.units import RPM_TO_RAD_S
+from ..core.validate import is_finite_real
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from .model import Model
-    from .simulate import SimulationResult
+    from ..plant.model import Model
+    from ..sim.simulator import SimulationResult
 
 __all__ = [
     "plot_simulation",

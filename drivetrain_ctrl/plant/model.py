@@ -22,9 +22,10 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-from . import kernels as K
-from .chain import BACKLASH_MODES, Chain, Friction, PwlTable, Spring
-from .loading import is_finite_real
+from .. import kernels as K
+from ..core.tables import _pwl_clamped
+from ..core.validate import is_finite_real
+from .chain import BACKLASH_MODES, Chain, Friction, Spring
 
 __all__ = ["Model", "Mode", "PogForm", "TableInfo", "FrictionInfo"]
 
@@ -95,23 +96,6 @@ class PogForm:
         xdot = self.model.rhs(x, u, self.mode)
         Lfull = self.model._mass_matrix()
         return self.T.T @ (Lfull @ xdot) - self.A @ z - self.B @ u
-
-
-def _pwl_clamped(t: PwlTable) -> tuple[list[float], list[float], list[float]]:
-    """Bounds, slopes, offsets of a clamped PWL table."""
-    x, y = t.x, t.y
-    if len(x) == 1:
-        return [], [0.0], [y[0]]
-    bounds = list(x)
-    slopes = [0.0]
-    offs = [y[0]]
-    for k in range(len(x) - 1):
-        s = (y[k + 1] - y[k]) / (x[k + 1] - x[k])
-        slopes.append(s)
-        offs.append(y[k] - s * x[k])
-    slopes.append(0.0)
-    offs.append(y[-1])
-    return bounds, slopes, offs
 
 
 def _pwl_spring(sp: Spring) -> tuple[list[float], list[float], list[float], list[str] | None]:

@@ -1,4 +1,4 @@
-"""Figures live in one layer: only ``drivetrain_ctrl.plotting`` imports matplotlib, and its
+"""Figures live in one layer: only ``drivetrain_ctrl.reporting`` imports matplotlib, and its
 figures are plain ``Figure`` objects (no pyplot registry: nothing to close in batch runs)."""
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import drivetrain_ctrl
+from drivetrain_ctrl.sim.run import run_scenario
 
 PKG = Path(drivetrain_ctrl.__file__).parent
 
@@ -28,21 +29,22 @@ def _matplotlib_imports(path: Path) -> list[int]:
     return lines
 
 
-def test_only_the_plotting_module_imports_matplotlib() -> None:
+def test_only_the_reporting_layer_imports_matplotlib() -> None:
+    reporting = PKG / "reporting"
     offenders = {
-        p.name: ln
-        for p in sorted(PKG.glob("*.py"))
-        if p.name != "plotting.py" and (ln := _matplotlib_imports(p))
+        str(p.relative_to(PKG)): ln
+        for p in sorted(PKG.rglob("*.py"))
+        if reporting not in p.parents and (ln := _matplotlib_imports(p))
     }
-    assert offenders == {}, f"matplotlib imported outside plotting.py (file: lines): {offenders}"
-    assert _matplotlib_imports(PKG / "plotting.py")  # the check itself sees imports
+    assert offenders == {}, f"matplotlib imported outside reporting/ (file: lines): {offenders}"
+    assert _matplotlib_imports(reporting / "figures.py")  # the check itself sees imports
 
 
 def test_loop_figures_are_plain_figures_saved_as_png(tmp_path: Path) -> None:
     import matplotlib.pyplot as plt
     from matplotlib.figure import Figure
 
-    from drivetrain_ctrl.plotting import plot_loop, plot_nyquist, plot_root_locus
+    from drivetrain_ctrl.reporting.figures import plot_loop, plot_nyquist, plot_root_locus
 
     before = plt.get_fignums()
     w = np.logspace(-1, 2, 50)
@@ -65,7 +67,7 @@ def test_loop_figures_are_plain_figures_saved_as_png(tmp_path: Path) -> None:
 
 
 def test_root_locus_legend_only_with_several_modes() -> None:
-    from drivetrain_ctrl.plotting import plot_root_locus
+    from drivetrain_ctrl.reporting.figures import plot_root_locus
 
     one = plot_root_locus([(1.0, [(-1.0, 0.0)], "a")], parameter="k", unit="-")
     two = plot_root_locus([(1.0, [(-1.0, 0.0)], "a"), (2.0, [(-2.0, 0.0)], "b")],
@@ -83,7 +85,7 @@ def test_the_import_scan_sees_nested_imports(tmp_path: Path) -> None:
 
 
 def test_plot_functions_name_bad_input() -> None:
-    from drivetrain_ctrl.plotting import plot_loop, plot_root_locus
+    from drivetrain_ctrl.reporting.figures import plot_loop, plot_root_locus
 
     with pytest.raises(ValueError, match="points is empty"):
         plot_root_locus([], parameter="k", unit="-")
@@ -93,12 +95,14 @@ def test_plot_functions_name_bad_input() -> None:
 
 def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> None:
     """A plot never overwrites a file of another kind (e.g. a CSV) with PNG bytes."""
-    from drivetrain_ctrl.drivetrain import Drivetrain
-    from drivetrain_ctrl.params import default_params
-    from drivetrain_ctrl.plotting import write_text_pdf
-    from drivetrain_ctrl.scenarios import load_scenario
+    from drivetrain_ctrl.plant.drivetrain import Drivetrain
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.reporting.figures import write_text_pdf
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
 
-    res = load_scenario("tip-in").run(Drivetrain(default_params(), kind="reduced"), t_end=0.2)
+    res = run_scenario(
+        load_scenario("tip-in"), Drivetrain(default_params(), kind="reduced"), t_end=0.2
+    )
     data = tmp_path / "data.csv"
     data.write_text("keep", encoding="utf-8")
     for bad in (data, tmp_path / "x.pdf", 123):
@@ -114,7 +118,7 @@ def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> 
 
 
 def test_plot_engagement_checks_runs_lockups_and_reference() -> None:
-    from drivetrain_ctrl.plotting import plot_engagement
+    from drivetrain_ctrl.reporting.figures import plot_engagement
 
     for runs in ("x", [("a", 1)], {"a": 1}):
         with pytest.raises(ValueError, match="give a list of .label, SimulationResult. pairs"):

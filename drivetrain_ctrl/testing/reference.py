@@ -44,8 +44,8 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from .params import DrivetrainParams
-from .units import GRAVITY
+from ..core.units import GRAVITY
+from ..plant.params import DrivetrainParams
 
 __all__ = ["FRICTION_MODE_NAMES", "full_reference_rhs", "full_reference_stuck_torques"]
 

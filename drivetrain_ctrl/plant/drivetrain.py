@@ -52,11 +52,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .chain import Body, Chain, Coupling, Friction, LaggedSource, PwlTable, Spring
-from .loading import is_finite_real
+from ..core.tables import PwlTable
+from ..core.units import GRAVITY
+from ..core.validate import is_finite_real
+from .chain import Body, Chain, Coupling, Friction, LaggedSource, Spring
 from .model import Model
 from .params import DrivetrainParams
-from .units import GRAVITY
 
 __all__ = [
     "Drivetrain",

@@ -34,20 +34,23 @@ saturation and rate-limit limits, end of the ramp) is an event of the simulation
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
-from typing import Any
+from dataclasses import dataclass, field
 
 import control
 import numpy as np
 from numpy.typing import NDArray
 
-from . import kernels as K
-from .chain import PwlTable
-from .loading import is_finite_real
-from .model import Model
-from .signals import Signal, constant
+from .. import kernels as K
+from ..core.signals import Signal, constant
+from ..core.tables import PwlTable, _pwl_clamped
+from ..core.validate import is_finite_real
+from ..plant.model import Model
 
-__all__ = ["Actuator", "LatchRamp", "Controller", "law6_controller", "pi_controller"]
+__all__ = [
+    "Actuator",
+    "LatchRamp",
+    "Controller",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,7 +100,7 @@ def require_controller(controller: object, what: str, *, optional: bool = False)
         raise TypeError(
             f"{what}: controller = {controller!r}: must be a closedloop.Controller"
             f"{' or None' if optional else ''} (build one with controllers.load_controller(NAME)"
-            ".build(params, reference=...), or let Scenario.run(dt, controller=NAME) do it)"
+            ".build(params, reference=...), or let run_scenario(scenario, dt, controller=NAME) do it)"
         )
 
 
@@ -259,8 +262,6 @@ class Controller:
         ci[K.CI_RL] = int(self.rate_limit is not None)
         ci[K.CI_SAT] = int(self.saturation is not None)
         if self.lookup is not None:
-            from .model import _pwl_clamped
-
             b_, s_, o_ = _pwl_clamped(self.lookup)
             ci[K.CI_LKNB] = len(b_)
             lk_b = np.array(b_ + [np.inf])
@@ -321,101 +322,10 @@ class Controller:
         return np.array(out, dtype=float)
 
 
-def law6_controller(
-    params: Any,
-    *,
-    reference: Signal,
-    engine_state: str = "omega_engine",
-    driven_state: str = "omega_primary",
-    engage_rate: float | None = 0.05,
-    start_time: float | None = None,
-) -> Controller:
-    """The paper's law (6): ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``.
-
-    ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
-    ``params.actuator`` with the stroke as saturation. When the clutch locks, the pedal is ramped
-    at ``engage_rate`` [m/s] (> 0) to fully engaged (``None``: no latch). A shortcut for
-    ``ControllerSpec(name="law6", law="paper").build(...)``
-    (:mod:`drivetrain_ctrl.controllers`).
-    """
-    return _from_spec(
-        "law6_controller",
-        params,
-        dict(name="law6", law="paper"),
-        reference=reference,
-        engage_rate=engage_rate,
-        start_time=start_time,
-        engine_state=engine_state,
-        driven_state=driven_state,
-    )
-
-
-def _from_spec(
-    fn: str,
-    params: Any,
-    fields: dict[str, Any],
-    *,
-    reference: Signal,
-    engage_rate: float | None,
-    start_time: float | None,
-    engine_state: str,
-    driven_state: str,
-) -> Controller:
-    """Build the :class:`~drivetrain_ctrl.controllers.ControllerSpec` of a shortcut; its errors
-    name the shortcut's argument (``engage_rate``, ``dt``) beside the spec's field."""
-    from .controllers import ControllerError, ControllerSpec
-
-    if engage_rate is not None:
-        fields = {**fields, "engage_rate_m_s": engage_rate}
-    try:
-        spec = ControllerSpec(**fields)
-    except ControllerError as exc:
-        msg = str(exc)
-        for arg, field_name in (("dt", "sample_period_s"), ("engage_rate", "engage_rate_m_s")):
-            msg = msg.replace(field_name, f"{arg} ({field_name})")
-        raise ValueError(f"{fn}: {msg}") from None
-    c = spec.build(
-        params,
-        reference=reference,
-        start_time=start_time,
-        engine_state=engine_state,
-        driven_state=driven_state,
-    )
-    return c if engage_rate is not None else replace(c, latch=None)
-
-
-def pi_controller(
-    params: Any,
-    *,
-    reference: Signal,
-    kp: float,
-    ki: float,
-    dt: float | None = None,
-    delay_samples: int = 0,
-    engine_state: str = "omega_engine",
-    driven_state: str = "omega_primary",
-    engage_rate: float | None = 0.05,
-    start_time: float | None = None,
-) -> Controller:
-    """A PI variant of law (6): ``x_r = x_r0 + sgn(w1 - w3) (kp e + ki int e)``, ``e = w_r - w_1``,
-    with back-calculation anti-windup; continuous, or sampled every ``dt`` [s] (forward-Euler
-    integrator) with ``delay_samples``; the latch as in :func:`law6_controller`. A shortcut for
-    ``ControllerSpec(law="pi", ...).build``.
-    """
-    return _from_spec(
-        "pi_controller",
-        params,
-        dict(
-            name="pi",
-            law="pi",
-            kp=kp,
-            ki=ki,
-            sample_period_s=dt,
-            delay_samples=delay_samples,
-        ),
-        reference=reference,
-        engage_rate=engage_rate,
-        start_time=start_time,
-        engine_state=engine_state,
-        driven_state=driven_state,
-    )
+def actuator_tf(actuator: Actuator) -> control.TransferFunction:
+    """x_r -> x_c [m/m]: ``w_a^2 / (s^2 + 2 d_a w_a s + w_a^2)`` (paper, Sec. IV). TypeError
+    if ``actuator`` is not an :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    if not isinstance(actuator, Actuator):
+        raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
+    w, d = actuator.omega, actuator.delta
+    return control.tf([w * w], [1.0, 2 * d * w, w * w], inputs="x_r", outputs="x_c")

@@ -37,7 +37,19 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
-from .analysis import (
+from ..control.laws import ControllerSpec, load_controller
+from ..core.serialize import json_ready
+from ..core.signals import step
+from ..linear.clutch import (
+    ClutchLoop,
+    _controller_sign,
+    _judder_threshold,
+    clutch_loop,
+    judder_threshold,
+    locked_analysis,
+)
+from ..linear.linearisation import linearise_visited_modes, trim_tf
+from ..linear.margins import (
     _auto_grid,
     _dt_of,
     db_phase,
@@ -46,27 +58,18 @@ from .analysis import (
     poles_of,
     root_locus,
 )
-from .controllers import ControllerSpec, load_controller
-from .drivetrain import Drivetrain
-from .linear import (
-    ClutchLoop,
+from ..linear.operating_point import (
     OperatingPoint,
-    _controller_sign,
     _driven_state,
-    _judder_threshold,
-    clutch_loop,
-    judder_threshold,
-    linearise_visited_modes,
-    locked_analysis,
     locked_trim,
     operating_point_from_result,
-    trim_tf,
 )
-from .metrics import engagement_metrics, json_ready
-from .params import DrivetrainParams, default_params, load_params
-from .scenarios import Scenario, load_scenario
-from .signals import step
-from .simulate import simulate
+from ..plant.drivetrain import Drivetrain
+from ..plant.params import DrivetrainParams, default_params, load_params
+from ..scenarios.scenario import Scenario, load_scenario
+from ..sim.metrics import engagement_metrics
+from ..sim.run import run_scenario
+from ..sim.simulator import simulate
 
 __all__ = [
     "Report",
@@ -561,7 +564,7 @@ def build_report(
     dtr = sc.drivetrain(p, kind=kind)
     # built once (as sc.run would build it, warnings included) and simulated as is
     ctrl = sc.make_controller(dtr, spec)
-    res = sc.run(dtr, controller=ctrl)
+    res = run_scenario(sc, dtr, controller=ctrl)
     metrics = engagement_metrics(res, dtr, start=sc.start_time, reference=sc.reference)
     cname = spec.name
 
@@ -678,7 +681,7 @@ def build_report(
 def make_figures(data: dict[str, Any]) -> dict[str, Any]:
     """``{name: Figure}``: bode, root_locus, nyquist, step, engagement, lock (from ``data``;
     :func:`drivetrain_ctrl.plotting.report_figures`)."""
-    from .plotting import report_figures
+    from .figures import report_figures
 
     return dict(report_figures(data))
 
@@ -928,7 +931,7 @@ def _html(data: dict[str, Any], figs: dict[str, Any]) -> str:
 def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
     import textwrap
 
-    from .plotting import write_text_pdf
+    from .figures import write_text_pdf
 
     lines: list[tuple[str, str]] = []  # (style, text)
     inp = data["inputs"]

@@ -38,11 +38,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .drivetrain import INPUTS, Drivetrain
-from .loading import is_finite_real, load_builtin_or_toml, reject_unknown
-from .params import DrivetrainParams
-from .signals import Signal, constant, ramp, step
-from .units import kmh_to_m_s, rpm_to_rad_s
+from ..control.blocks import Controller
+from ..control.laws import load_controller
+from ..core.registry import load_builtin_or_toml
+from ..core.signals import Signal, constant, ramp, step
+from ..core.units import kmh_to_m_s, rpm_to_rad_s
+from ..core.validate import is_finite_real, reject_unknown
+from ..plant.drivetrain import INPUTS, Drivetrain
+from ..plant.params import DrivetrainParams, default_params, load_params
 
 __all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError", "idle_throttle"]
 
@@ -192,9 +195,6 @@ class Scenario:
         ``Controller`` (returned as is). ``None`` gives None (open loop)."""
         if controller is None:
             return None
-        from .closedloop import Controller
-        from .controllers import load_controller
-
         if isinstance(controller, Controller):
             return controller
         if self.reference is None:
@@ -204,42 +204,6 @@ class Scenario:
             )
         spec = load_controller(controller)
         return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
-
-    def run(
-        self,
-        dt: Drivetrain,
-        *,
-        controller: Any = None,
-        options: Any = None,
-        t_end: float | None = None,
-    ) -> Any:
-        """Simulate this scenario on ``dt``; returns a SimulationResult.
-
-        ``controller``: see :meth:`make_controller`; a scenario that gives an engine-speed
-        reference instead of the pedal (``paper-start``) needs one."""
-        from .simulate import simulate
-
-        if self.needs_controller and controller is None:
-            from .controllers import builtin_controllers
-
-            names = ", ".join(repr(n) for n in builtin_controllers())
-            raise ScenarioError(
-                f"scenario {self.name!r} needs a controller (it gives the engine-speed reference, "
-                f"not the pedal): pass controller={names} or a controller TOML file "
-                "(CLI: --controller)"
-            )
-        if controller is not None:
-            self.check_pedal0(dt.params)
-        ctrl = self.make_controller(dt, controller)
-        return simulate(
-            dt.model,
-            self.initial_state(dt),
-            self.input_signals(),
-            t_end=self.t_end if t_end is None else t_end,
-            options=options,
-            controller=ctrl,
-            controller_initial=self.pedal0 if ctrl is not None else 0.0,
-        )
 
     def drivetrain(self, params: DrivetrainParams, *, kind: str = "full") -> Drivetrain:
         """The drivetrain of this scenario (its gear and slope) from ``params``."""
@@ -438,7 +402,6 @@ def paper_start(params: DrivetrainParams | None = None) -> Scenario:
     ``params``, default parameter set if None) and the clutch open until 0.5 s; at 0.5 s the
     throttle steps to 0.9, the engine-speed reference omega_r steps to 1600 rpm and the controller
     starts; from 1.5 s the throttle ramps down to 0.6 within 0.1 s; horizon 4 s."""
-    from .params import default_params
 
     n = PAPER_START
     p = default_params() if params is None else params
@@ -531,8 +494,6 @@ def load_scenario(
     if isinstance(source, bool) or not isinstance(source, (str, Path)):
         raise ScenarioError(f"load_scenario: source = {source!r}: give a scenario name or a path")
     if isinstance(params, (str, Path)):
-        from .params import load_params
-
         params = load_params(params)
     elif params is not None and not isinstance(params, DrivetrainParams):
         raise ScenarioError(

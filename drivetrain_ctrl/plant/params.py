@@ -52,8 +52,9 @@ import numpy as np
 import tomli_w
 from numpy.typing import NDArray
 
-from drivetrain_ctrl.loading import is_real
-from drivetrain_ctrl.units import GRAVITY
+from ..core.registry import load_toml_as
+from ..core.units import GRAVITY
+from ..core.validate import is_real
 
 __all__ = [
     "FRAMES",
@@ -1081,7 +1082,6 @@ def load_params(source: str | Path) -> DrivetrainParams:
     the file), :class:`ValueError` for an unknown set name and :class:`FileNotFoundError` for a
     missing file.
     """
-    from .loading import load_toml_as
 
     return load_toml_as(_resolve_source(source), params_from_dict, error=ParameterError)
 

@@ -1,0 +1,43 @@
+"""Core: numpy-only building blocks shared by every layer (units, signals, the one table type,
+input validation, JSON-ready numbers, loading built-ins or TOML files)."""
+
+from __future__ import annotations
+
+from .registry import load_builtin_or_toml, load_toml_as
+from .serialize import json_ready, round_sig
+from .signals import Signal, constant, ramp, sine, step, table
+from .tables import PwlTable
+from .units import (
+    GRAVITY,
+    KMH_TO_M_S,
+    RPM_TO_RAD_S,
+    kmh_to_m_s,
+    m_s_to_kmh,
+    rad_s_to_rpm,
+    rpm_to_rad_s,
+)
+from .validate import is_finite_real, is_real, reject_unknown
+
+__all__ = [
+    "GRAVITY",
+    "RPM_TO_RAD_S",
+    "KMH_TO_M_S",
+    "rpm_to_rad_s",
+    "rad_s_to_rpm",
+    "kmh_to_m_s",
+    "m_s_to_kmh",
+    "PwlTable",
+    "json_ready",
+    "round_sig",
+    "load_builtin_or_toml",
+    "load_toml_as",
+    "is_real",
+    "is_finite_real",
+    "reject_unknown",
+    "Signal",
+    "constant",
+    "step",
+    "ramp",
+    "table",
+    "sine",
+]

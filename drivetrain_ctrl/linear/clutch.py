@@ -1,0 +1,531 @@
+"""The clutch control loop in slip and the locked driveline (paper, Sec. IV): car-specific theory on top of
+:mod:`drivetrain_ctrl.linear.linearisation`."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import control
+import numpy as np
+from numpy.typing import NDArray
+
+from ..control.blocks import Controller, actuator_tf, require_controller
+from ..core.serialize import json_ready
+from ..core.validate import finite_float, positive_float
+from .linearisation import ShuffleMode, _oscillatory, _siso, _tf_min, linearisation_parts, linearise
+from .operating_point import OperatingPoint, StuckMargin, require_op
+
+
+@dataclass(frozen=True, slots=True)
+class EngineSide:
+    """Engine-side figures at a slip operating point (from the analytic Jacobian).
+
+    ``J1`` [kg m^2]; ``b1_eff`` b_1' = -dC_1/domega_1 [N m s/rad]; ``clutch_gain``
+    d tau_13/d x_c = k13'(x_c) mu s [N m/m]; ``dk13_dxc`` k13'(x_c) [N m/m]; ``k13`` [N m];
+    ``mu`` mu(|w|)/mu(0); ``mu_slope_torque`` c = k13 mu' [N m s/rad]; ``sign`` of the slip;
+    ``torque_per_throttle`` dC_G/dtheta_f [N m]; ``tau_p`` [s] engine lag.
+    """
+
+    J1: float
+    b1_eff: float
+    clutch_gain: float
+    dk13_dxc: float
+    k13: float
+    mu: float
+    mu_slope_torque: float
+    sign: int
+    torque_per_throttle: float
+    tau_p: float
+
+
+def _require_slip(op: OperatingPoint, what: str) -> None:
+    require_op(op, what)
+    if op.clutch_mode not in ("slip+", "slip-"):
+        raise ValueError(
+            f"{what}: op has the clutch {op.clutch_mode!r}; the clutch loop exists only in slip "
+            "(use locked_analysis for a locked clutch)"
+        )
+
+
+def engine_side(op: OperatingPoint, *, mu_slope: float | None = None) -> EngineSide:
+    """:class:`EngineSide` at the slip point ``op`` (ValueError if the clutch does not slip)."""
+    _require_slip(op, "engine_side")
+    m = op.model
+    parts = linearisation_parts(op, mu_slope=mu_slope)
+    ie = m.chain.body_index("engine")
+    il = m.state_index("lag_engine")
+    J1 = float(m.data.M[ie])
+    b1 = -float(parts.engine_dx[ie])
+    Kth = float(parts.engine_dx[il])
+    tau_p = -1.0 / float(parts.A[il, il])
+    mu = parts.mu
+    return EngineSide(
+        J1=J1,
+        b1_eff=b1,
+        clutch_gain=parts.clutch_gain,
+        dk13_dxc=parts.clutch_gain / (mu * parts.sign),
+        k13=parts.capacity,
+        mu=mu,
+        mu_slope_torque=parts.mu_slope_torque,
+        sign=parts.sign,
+        torque_per_throttle=Kth,
+        tau_p=tau_p,
+    )
+
+
+def pedal_to_clutch_torque(op: OperatingPoint) -> control.TransferFunction:
+    """x_c -> tau_13 [N m/m] in slip: the static gain ``k13'(x_c) mu s`` (driveline-independent:
+    the kinetic torque depends on the pedal and the slip only)."""
+    return _pedal_to_clutch_torque(engine_side(op))
+
+
+def clutch_torque_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
+    """tau_13 -> omega_1 [rad/s / N m] in slip: ``-1 / (J_1 s + b_1')``."""
+    return _clutch_torque_to_engine_speed(engine_side(op))
+
+
+def throttle_to_engine_speed(op: OperatingPoint) -> control.TransferFunction:
+    """theta -> omega_1 [rad/s] in slip with constant mu (clutch torque held by the pedal):
+    ``(dC_G/dtheta_f) / ((tau_p s + 1)(J_1 s + b_1'))``."""
+    return _throttle_to_engine_speed(engine_side(op))
+
+
+# the three above from an engine side already computed (clutch_loop)
+def _pedal_to_clutch_torque(es: EngineSide) -> control.TransferFunction:
+    return control.tf([es.clutch_gain], [1.0], inputs="x_c", outputs="tau_13")
+
+
+def _clutch_torque_to_engine_speed(es: EngineSide) -> control.TransferFunction:
+    return control.tf([-1.0], [es.J1, es.b1_eff], inputs="tau_13", outputs="omega_engine")
+
+
+def _throttle_to_engine_speed(es: EngineSide) -> control.TransferFunction:
+    den = np.polymul([es.tau_p, 1.0], [es.J1, es.b1_eff])
+    return control.tf([es.torque_per_throttle], den, inputs="throttle", outputs="omega_engine")
+
+
+def pedal_to_vehicle_accel(
+    op: OperatingPoint, *, mu_slope: float | None = None
+) -> control.TransferFunction:
+    """x_c -> a_vehicle [m/s^2 / m] from the linearised plant (minimal realisation)."""
+    sys = linearise(op, outputs=["a_vehicle"], mu_slope=mu_slope)
+    return _tf_min(_siso(sys, "x_c", "a_vehicle"))
+
+
+def throttle_to_vehicle_accel(
+    op: OperatingPoint, *, mu_slope: float | None = None
+) -> control.TransferFunction:
+    """theta -> a_vehicle [m/s^2] from the linearised plant (minimal realisation)."""
+    sys = linearise(op, outputs=["a_vehicle"], mu_slope=mu_slope)
+    return _tf_min(_siso(sys, "throttle", "a_vehicle"))
+
+
+@dataclass(frozen=True)
+class ClutchLoop:
+    """The linearised clutch loop at a slip point, for one controller.
+
+    TFs (python-control): ``actuator`` x_r -> x_c, ``x_c_to_tau13``, ``tau13_to_omega1``,
+    ``theta_to_omega1``, ``x_c_to_accel``; ``plant`` P: controller output -> measured error
+    channel with the sign, actuator and (possibly coupled) engine dynamics, so that ``L = C P``
+    (negative feedback); ``controller`` C; ``L``, ``S``, ``T``, ``PS``, ``CS`` (gang of four);
+    ``closed_loop`` the state-space closed loop (reference -> omega_1) whose poles include the
+    driveline modes. ``discrete``: sampled controller analysed in discrete time (``dt`` [s]):
+    ``L(z) = C(z) z^-d ZOH{P}(z)``, exact at the samples. ``engine``: :class:`EngineSide`.
+    """
+
+    op: OperatingPoint = field(repr=False)
+    controller_name: str
+    engine: EngineSide
+    actuator: control.TransferFunction
+    x_c_to_tau13: control.TransferFunction
+    tau13_to_omega1: control.TransferFunction
+    theta_to_omega1: control.TransferFunction
+    x_c_to_accel: control.TransferFunction
+    plant: control.StateSpace
+    controller: control.StateSpace
+    L: Any
+    S: Any
+    T: Any
+    PS: Any
+    CS: Any
+    closed_loop: control.StateSpace
+    discrete: bool
+    dt: float | None
+
+
+def _controller_sign(controller: Controller, op: OperatingPoint) -> float:
+    if controller.sign_of is None:
+        return 1.0
+    a, b = controller.sign_of
+    d = op.state(a) - op.state(b)
+    if d == 0:
+        raise ValueError(f"controller.sign_of = {controller.sign_of}: zero at the operating point")
+    return 1.0 if d > 0 else -1.0
+
+
+def clutch_loop(
+    op: OperatingPoint, controller: Controller, *, mu_slope: float | None = None
+) -> ClutchLoop:
+    """The loop of ``controller`` around the slipping clutch at ``op``.
+
+    The plant seen by the controller's LTI block is built from the linearised model
+    (:func:`linearise`, input ``x_c``): ``P = -sgn * R(s) * A(s) * sum_k coef_k P_k(s)`` with
+    ``P_k`` = x_c -> measured state k, ``sgn`` = the sign block at ``op``, ``R`` the rate limiter
+    (first order ``g/(s+g)`` in its linear range), ``A`` the actuator; the reference term of the
+    measurement is not part of the loop. Saturation is assumed inactive at ``op``. With constant
+    mu ``L`` equals :func:`law6_loop_closed_form` (the driveline modes are uncontrollable from
+    x_c to omega_1 and cancel); with ``mu_slope`` they couple in. A discrete controller is
+    analysed in discrete time (ZOH-discretised plant, ``z^-d`` for the delay).
+    """
+    _require_slip(op, "clutch_loop")
+    require_controller(controller, "clutch_loop")
+    if controller.output != "pedal":
+        raise ValueError(f"controller.output = {controller.output!r}: must drive 'pedal'")
+    es = engine_side(op, mu_slope=mu_slope)
+    sys = linearise(op, inputs=("throttle", "x_c"), mu_slope=mu_slope)
+    meas = None
+    for coef, src in controller.measurement:
+        if src == "ref":
+            continue
+        if src not in sys.output_labels:
+            raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
+        Pk = _siso(sys, "x_c", src) * float(coef)
+        meas = Pk if meas is None else meas + Pk
+    if meas is None:
+        raise ValueError("controller.measurement: has no plant state (only 'ref')")
+    P = control.ss(meas * _error_chain(controller, op))
+    C = controller.lti
+    disc = controller.is_discrete
+    if disc:
+        Ts = float(C.dt)
+        Pd = control.sample_system(P, Ts, method="zoh")
+        if controller.delay_samples:
+            zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
+            Pd = control.ss(Pd * control.ss(zd))
+        P_use = Pd
+    else:
+        Ts = None
+        P_use = P
+    L_ss = control.ss(C * P_use)
+    Lt = _tf_min(L_ss)
+    one = control.tf([1.0], [1.0], Ts) if disc else control.tf([1.0], [1.0])
+    S = control.minreal(one / (one + Lt), verbose=False)
+    T = control.minreal(Lt / (one + Lt), verbose=False)
+    Pt = _tf_min(P_use)
+    Ct = control.tf(C)
+    PS = control.minreal(Pt * S, verbose=False)
+    CS = control.minreal(Ct * S, verbose=False)
+    cl = control.feedback(L_ss, 1)
+    return ClutchLoop(
+        op=op,
+        controller_name=controller.name,
+        engine=es,
+        actuator=actuator_tf(controller.actuator) if controller.actuator else control.tf(1, 1),
+        x_c_to_tau13=_pedal_to_clutch_torque(es),
+        tau13_to_omega1=_clutch_torque_to_engine_speed(es),
+        theta_to_omega1=_throttle_to_engine_speed(es),
+        x_c_to_accel=pedal_to_vehicle_accel(op, mu_slope=mu_slope),
+        plant=P_use,
+        controller=C,
+        L=Lt,
+        S=S,
+        T=T,
+        PS=PS,
+        CS=CS,
+        closed_loop=cl,
+        discrete=disc,
+        dt=Ts,
+    )
+
+
+def _error_chain(controller: Controller, op: OperatingPoint) -> control.StateSpace:
+    """Controller output -> x_c: ``-sgn`` (the sign block; the minus sign turns the loop into
+    negative feedback), rate limiter (linear range) and actuator."""
+    sgn = _controller_sign(controller, op)
+    chain = control.ss([], [], [], [[-sgn]])
+    if controller.rate_limit is not None:
+        g = controller.rate_limit[1]
+        chain = control.ss(control.tf([g], [1.0, g])) * chain
+    if controller.actuator is not None:
+        chain = control.ss(actuator_tf(controller.actuator)) * chain
+    return chain
+
+
+def slip_mode_poles(
+    op: OperatingPoint, controller: Controller | None = None, *, mu_slope: float | None = None
+) -> NDArray[np.complex128]:
+    """Poles [1/s] of the linearised slip mode: the plant alone (pedal held) or closed by a
+    continuous ``controller`` (the full state-space interconnection, so every driveline mode is
+    included, controllable or not)."""
+    require_op(op, "slip_mode_poles")
+    require_controller(controller, "slip_mode_poles", optional=True)
+    return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
+
+
+def _slip_mode_poles_of(
+    sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
+) -> NDArray[np.complex128]:
+    """:func:`slip_mode_poles` from the plant already linearised at ``op`` (input ``x_c``)."""
+    if controller is None:
+        return np.asarray(np.linalg.eigvals(sys.A), dtype=complex)
+    if controller.is_discrete:
+        raise ValueError("slip_mode_poles: a discrete controller; use clutch_loop(...).closed_loop")
+    Cm = np.zeros((1, sys.nstates))
+    Dm = np.zeros((1, 1))
+    for coef, src in controller.measurement:
+        if src == "ref":
+            continue
+        o = list(sys.output_labels).index(src)
+        Cm += coef * sys.C[[o], :]
+        Dm += coef * sys.D[[o], :]
+    plant_e = control.ss(sys.A, sys.B, Cm, Dm)  # x_c -> measured part of the error
+    open_ss = control.ss(controller.lti) * _error_chain(controller, op) * plant_e
+    # open_ss maps the error back to the controller input with the sign of the loop: close it
+    cl = control.feedback(open_ss, 1, sign=-1)
+    return np.asarray(np.linalg.eigvals(cl.A), dtype=complex)
+
+
+@dataclass(frozen=True)
+class LockedAnalysis:
+    """Locked clutch: the clutch loop is open (x_c does not act), so loop margins are undefined.
+
+    ``margins_reason``; ``shuffle_modes`` (oscillatory modes of the locked driveline, lowest
+    first); ``poles``; ``theta_to_accel`` TF theta -> a_vehicle [m/s^2];
+    ``breakaway_margins`` (certificate of ``op``)."""
+
+    op: OperatingPoint = field(repr=False)
+    margins_reason: str
+    shuffle_modes: tuple[ShuffleMode, ...]
+    poles: tuple[complex, ...]
+    theta_to_accel: control.TransferFunction
+    breakaway_margins: tuple[StuckMargin, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return json_ready(
+            {
+                "margins": None,
+                "margins_reason": self.margins_reason,
+                "shuffle_modes": [
+                    {
+                        "natural_frequency_hz": s.natural_frequency_hz,
+                        "damped_frequency_hz": s.damped_frequency_hz,
+                        "damping": s.damping,
+                    }
+                    for s in self.shuffle_modes
+                ],
+                "poles": [[p.real, p.imag] for p in self.poles],
+                "breakaway_margins": {
+                    s.element: {"capacity": s.capacity, "torque": s.torque, "margin": s.margin}
+                    for s in self.breakaway_margins
+                },
+            }
+        )
+
+
+def locked_analysis(op: OperatingPoint) -> LockedAnalysis:
+    """Shuffle modes, theta -> vehicle acceleration and breakaway margins at a locked point."""
+    if op.clutch_mode != "stuck":
+        raise ValueError(f"locked_analysis: op has the clutch {op.clutch_mode!r}, not 'stuck'")
+    sys = linearise(op, inputs=("throttle",))
+    poles = np.linalg.eigvals(sys.A)
+    return LockedAnalysis(
+        op=op,
+        margins_reason=(
+            "clutch locked: x_c does not change the transmitted torque while the clutch is stuck, "
+            "so the clutch loop is open (gain, phase, delay and disk margins undefined)"
+        ),
+        shuffle_modes=_oscillatory(poles),
+        poles=tuple(complex(p) for p in sorted(poles, key=lambda z: (z.real, z.imag))),
+        theta_to_accel=throttle_to_vehicle_accel(op),
+        breakaway_margins=op.certificate.stuck_margins,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class JudderThreshold:
+    """Critical clutch friction slope of a slip point of the reduced model
+    (:func:`judder_threshold`). Torque slopes ``c = k13 mu'`` in [N m s/rad], mu slopes in
+    [s/rad] (of the ratio mu/mu0).
+
+    ``c_shuffle_speed_source``: the shuffle-mode crossing with the engine side a speed source
+    (Routh-Hurwitz of the driveline cubic); ``c_shuffle``: the same corrected for the engine side's
+    impedance at the shuffle frequency; ``c_dc``: the real (s = 0) crossing, None when the
+    controller has integral action; ``c_crit`` the first of them (smallest ``|c|``) and ``which``
+    (``"shuffle"`` or ``"dc"``); ``mu_slope_crit = c_crit / k13``; ``shuffle_frequency_hz`` at the
+    crossing; figures (primary frame): ``J25`` [kg m^2], ``m_e`` vehicle mass referred [kg m^2],
+    ``h_t`` [N m/rad], ``b_t`` [N m s/rad], ``b_p`` (driven shaft to ground) and ``b_e`` (vehicle
+    road-load slope referred) [N m s/rad], ``b1_eff`` b_1', ``engine_factor`` Re of
+    ``(J_1 jw + b_1')/(Z_e(jw) + c)`` at the crossing, ``k13`` [N m]."""
+
+    c_shuffle_speed_source: float
+    c_shuffle: float
+    c_dc: float | None
+    c_crit: float
+    which: str
+    mu_slope_crit: float
+    shuffle_frequency_hz: float
+    J25: float
+    m_e: float
+    h_t: float
+    b_t: float
+    b_p: float
+    b_e: float
+    b1_eff: float
+    engine_factor: float
+    k13: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return json_ready({k: getattr(self, k) for k in self.__dataclass_fields__})
+
+
+def shuffle_speed_source_threshold(
+    *, J: float, m: float, h: float, b: float, e: float
+) -> tuple[float, float]:
+    """Routh-Hurwitz boundary of the driveline seen from a speed source at the clutch.
+
+    Driven inertia ``J`` with damping ``d`` to ground (the unknown), shaft ``h``, ``b`` to the
+    (referred) vehicle inertia ``m`` with damping ``e`` to ground. Characteristic polynomial
+    ``s^3 + a2 s^2 + a1 s + a0`` with ``a2 = (d + b)/J + (e + b)/m``,
+    ``a1 = (d e + b (d + e) + h (J + m))/(J m)``, ``a0 = h (d + e)/(J m)``. The oscillatory
+    pair crosses at ``a2 a1 = a0`` (then ``s = +-j sqrt(a1)``): a quadratic in ``d``,
+
+        d^2 (e + b)/(J^2 m) + d [g/J + k (e + b)/(J m) - h/(J m)] + k g - h e/(J m) = 0,
+
+    ``k = b/J + (e + b)/m``, ``g = (b e + h (J + m))/(J m)``; its larger root is ``d*``. Returns
+    ``(d*, omega*)`` [N m s/rad, rad/s]. To first order in the damping ``d* = -b (1 + J/m)^2 -
+    e (J/m)^2`` (the trace of the system matrix minus the rigid-body pole).
+
+    ``J``, ``m``, ``h`` must be finite and > 0, ``b``, ``e`` finite and >= 0 with ``b + e > 0``
+    (ValueError naming the field otherwise).
+    """
+    J, m, h = (positive_float(nm, v) for nm, v in (("J", J), ("m", m), ("h", h)))
+    b, e = (finite_float(nm, v) for nm, v in (("b", b), ("e", e)))
+    for nm, v in (("b", b), ("e", e)):
+        if v < 0:
+            raise ValueError(f"{nm} = {v!r}: a damping [N m s/rad] must be >= 0")
+    if b + e <= 0:
+        raise ValueError(f"b = {b!r}, e = {e!r}: b + e must be > 0 (an undamped driveline)")
+    kk = b / J + (e + b) / m
+    gg = (b * e + h * (J + m)) / (J * m)
+    qa = (e + b) / (J * J * m)
+    qb = gg / J + kk * (e + b) / (J * m) - h / (J * m)
+    qc = kk * gg - h * e / (J * m)
+    disc = qb * qb - 4 * qa * qc
+    d = (-qb + math.sqrt(max(disc, 0.0))) / (2 * qa)
+    a1 = (d * e + b * (d + e) + h * (J + m)) / (J * m)
+    return d, math.sqrt(max(a1, 0.0))
+
+
+def _reduced_figures(op: OperatingPoint) -> tuple[float, float, float, float, float, float]:
+    m = op.model
+    if op.kind != "reduced":
+        raise ValueError(
+            f"judder_threshold: op is on the {op.kind!r} model; the closed form is derived on the "
+            "reduced model (engine, J25, shaft h_t/b_t, vehicle)"
+        )
+    D = m.data
+    ip = m.chain.body_index("primary")
+    iv = m.chain.body_index("vehicle")
+    c = ip  # coupling primary -> vehicle
+    ratio = float(D.ratio[c])
+    kt = int(D.c_table[c])
+    h = float(D.t_s[kt, op.mode.reg[kt]])
+    v = op.state("v_vehicle")
+    J = float(D.M[ip])
+    me = float(D.M[iv]) / ratio**2
+    b_e = float(D.visc[iv] + 2 * D.quad[iv] * abs(v)) / ratio**2
+    return J, me, h, float(D.damp[c]), float(D.visc[ip]), b_e
+
+
+def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -> JudderThreshold:
+    """Critical friction slope at which a falling mu(slip) destabilises the slip mode (reduced
+    model; ``controller`` None = pedal held, else a continuous clutch controller, e.g. law (6)).
+
+    Derivation. In slip the clutch torque perturbation is ``c (dw_1 - dw_2) + k13' mu s dx_c``
+    with ``c = k13 mu'``. Eliminating the engine (and the controller) the driven side sees the
+    clutch as an impedance ``-d tau_13/d omega_2 = Z(s) = c (J_1 s + b_1')/(Z_e(s) + c)`` with
+    the engine-side impedance ``Z_e = (J_1 s + b_1')(1 + L(s))`` (``L`` the constant-mu loop, 0
+    with the pedal held). The characteristic equation is ``1 + Y_2(s) Z(s) = 0`` (``Y_2``: driven
+    side admittance).
+
+    * Shuffle (judder) crossing: at the shuffle frequency ``|Z_e| >> |c|`` (the engine inertia,
+      and law (6) holding omega_1, make the engine a speed source), so ``Z ~ c``: the driven
+      inertia J25 gets the damping ``d = b_p + c`` to ground, and the driveline (J25, h_t, b_t,
+      m_e, b_e) crosses at ``d*`` of :func:`shuffle_speed_source_threshold`:
+      ``c* = d* - b_p ~ -b_p - b_t (1 + J25/m_e)^2 - b_e (J25/m_e)^2``: the driveline side's
+      effective damping at the shuffle mode, ``b_p + c + b_t (1 + J25/m_e)^2 + ...``, turns
+      negative. ``c_shuffle`` corrects for the engine side: ``c = c*/kappa`` with
+      ``kappa = Re[(J_1 jw + b_1')/(Z_e(jw) + c)]`` at ``w*`` (fixed point).
+    * DC crossing: at ``s = 0`` the driveline is rigid, ``Y_2(0) = 1/b_d`` with
+      ``b_d = b_p + b_e``, and a real pole crosses at ``c_dc = -Z_e(0) b_d/(b_1' + b_d)``: pedal
+      held ``-b_1' b_d/(b_1' + b_d)`` (the two sides' dampings in series); law (6)
+      ``-b_d (b_1' + K_L)/(b_1' + b_d)``, ``K_L = k_r |k13'| mu``; integral action: none.
+
+    ``c_crit`` is the crossing with the smaller ``|c|``.
+    """
+    _require_slip(op, "judder_threshold")
+    require_controller(controller, "judder_threshold", optional=True)
+    if controller is None:
+        return _judder_threshold(op, engine_side(op), None)
+    if controller.is_discrete:
+        raise ValueError("judder_threshold: a continuous controller is needed")
+    loop = clutch_loop(op, controller)
+    return _judder_threshold(op, loop.engine, loop.L)
+
+
+def _judder_threshold(op: OperatingPoint, es: EngineSide, Lf: Any) -> JudderThreshold:
+    """:func:`judder_threshold` at slip point ``op`` with its engine side ``es`` and the
+    constant-mu loop ``Lf`` of a continuous controller (None: pedal held), e.g. a built
+    :class:`ClutchLoop`'s ``engine`` and ``L``."""
+    J, me, h, b, bp, be = _reduced_figures(op)
+    b1 = es.b1_eff
+    d_star, w_star = shuffle_speed_source_threshold(J=J, m=me, h=h, b=b, e=be)
+    c_ss = d_star - bp
+    if Lf is None:
+
+        def Ze(s: complex) -> complex:
+            return es.J1 * s + b1
+
+        Ze0: float | None = b1
+    else:
+
+        def Ze(s: complex) -> complex:
+            return (es.J1 * s + b1) * (1.0 + complex(Lf(s)))
+
+        L0 = complex(Lf(1e-9)) if np.isfinite(abs(complex(Lf(1e-9)))) else math.inf
+        Ze0 = None if abs(L0) > 1e8 else b1 * (1.0 + L0.real)
+    c = c_ss
+    kappa = 1.0
+    for _ in range(50):
+        s = 1j * w_star
+        kappa = float(((es.J1 * s + b1) / (Ze(s) + c)).real)
+        c_new = c_ss / kappa
+        if abs(c_new - c) < 1e-13 * max(1.0, abs(c)):
+            c = c_new
+            break
+        c = c_new
+    c_dc = None if Ze0 is None else -Ze0 * (bp + be) / (b1 + bp + be)
+    if c_dc is not None and abs(c_dc) < abs(c):
+        crit, which = c_dc, "dc"
+    else:
+        crit, which = c, "shuffle"
+    return JudderThreshold(
+        c_shuffle_speed_source=c_ss,
+        c_shuffle=c,
+        c_dc=c_dc,
+        c_crit=crit,
+        which=which,
+        mu_slope_crit=crit / es.k13,
+        shuffle_frequency_hz=w_star / (2 * math.pi),
+        J25=J,
+        m_e=me,
+        h_t=h,
+        b_t=b,
+        b_p=bp,
+        b_e=be,
+        b1_eff=b1,
+        engine_factor=kappa,
+        k13=es.k13,
+    )
