@@ -9,7 +9,9 @@ compiled loop). The signal chain, in order:
 2. the SISO LTI block ``lti`` (continuous; or discrete with sample period ``lti.dt`` [s], held
    between samples, with a transport delay of ``delay_samples`` samples);
 3. sign switching: times ``sign(x[a] - x[b])`` for ``sign_of = (a, b)`` state names;
-4. ``offset``; 5. ``lookup`` table; 6. ``saturation = (lo, hi)``;
+4. ``offset``;
+5. ``lookup`` table;
+6. ``saturation = (lo, hi)``;
 7. latch-and-ramp: when friction element ``latch.element`` enters mode ``latch.mode``, the output
    is frozen and moved without a jump from its current value to ``latch.target`` at
    ``latch.rate`` [unit/s]; if the element leaves that mode again (a re-slip) the latch re-arms:
@@ -17,7 +19,7 @@ compiled loop). The signal chain, in order:
    the same rate (applied before the saturation);
 8. rate limiter ``rate_limit = (rate [unit/s], gain [1/s])``: ``r' = clip(gain (v - r), -rate, rate)``;
 9. second-order actuator ``omega_a^2 / (s^2 + 2 delta_a omega_a s + omega_a^2)`` (paper Sec. IV);
-the result drives plant input ``output``.
+   the result drives plant input ``output``.
 
 Before ``start_time`` [s] the output is held at the simulation's ``controller_initial`` value
 (e.g. the open pedal) and the LTI states do not move. The LTI states are also frozen while the latch

@@ -24,7 +24,7 @@ class EngineSide:
 
     ``J1`` [kg m^2]; ``b1_eff`` b_1' = -dC_1/domega_1 [N m s/rad]; ``clutch_gain``
     d tau_13/d x_c = k13'(x_c) mu s [N m/m]; ``dk13_dxc`` k13'(x_c) [N m/m]; ``k13`` [N m];
-    ``mu`` mu(|w|)/mu(0); ``mu_slope_torque`` c = k13 mu' [N m s/rad]; ``sign`` of the slip;
+    ``mu`` ``mu(|w|)/mu(0)``; ``mu_slope_torque`` c = k13 mu' [N m s/rad]; ``sign`` of the slip;
     ``torque_per_throttle`` dC_G/dtheta_f [N m]; ``tau_p`` [s] engine lag.
     """
 

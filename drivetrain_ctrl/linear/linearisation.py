@@ -40,7 +40,7 @@ class LinearisationParts:
     ``engine_dx``, ``engine_du``: engine output torque C_1 [N m];
     ``mu_slope_torque``: ``c = k13 mu'`` [N m s/rad] used; ``clutch_gain``: d tau_13/d x_c
     [N m/m] (``k13' mu s`` in slip, 0 otherwise); ``capacity``: k13(x_c) [N m];
-    ``mu``: mu(|w|)/mu(0) [-]; ``sign``: sgn of the clutch slip (0 when not slipping).
+    ``mu``: ``mu(|w|)/mu(0)`` [-]; ``sign``: sgn of the clutch slip (0 when not slipping).
     """
 
     A: F64
@@ -62,7 +62,7 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
     """Analytic full-coordinate Jacobians at ``op`` (see :class:`LinearisationParts`).
 
     ``mu_slope`` [s/rad] overrides ``d(mu/mu0)/d|w|`` of the clutch at the operating point (the
-    level mu(|w|) is kept): the clutch torque gets the slope ``c = k13(x_c) mu_slope``. Only
+    level ``mu(|w|)`` is kept): the clutch torque gets the slope ``c = k13(x_c) mu_slope``. Only
     meaningful while the clutch slips (ignored otherwise).
     """
     m, x, u, mode = op.model, np.asarray(op.x), np.asarray(op.u), op.mode

@@ -41,14 +41,14 @@ In slip ``tau_13 = k13(x_c) mu(|w|) sgn(w)``, ``w = omega_1 - omega_2``. Lineari
 ``c = k13(x_c) mu'(|w|)`` [N m s/rad] (the same on both branches since ``d|w|/dw = s``). The engine
 side is ``J_1 omega_1' = C_1(omega_1, theta_f) - tau_13`` with ``C_1 = C_G - b_1 omega_1 -
 c_1 sgn(omega_1)``; its linearisation is ``J_1 d omega_1' = -b_1' d omega_1 + dC_G/dtheta_f
-d theta_f - d tau_13`` with the engine-side effective damping
+d theta_f - d tau_13`` with the engine-side effective damping::
 
     b_1' = -dC_1/domega_1 = b_1 - theta_f dC_max/domega_1
 
 (``b_1`` viscous; the Coulomb part is constant in a turning mode; the second term only with the
 full-load map ``C_G = theta_f C_max(omega_1)``, zero for the paper's ``C_G = K theta_f``). With
 constant mu (``c = 0``) the engine decouples from the driveline and law (6),
-``x_r = x_r0 + k_r (omega_r - omega_1) s``, closes the loop (negative-feedback convention)
+``x_r = x_r0 + k_r (omega_r - omega_1) s``, closes the loop (negative-feedback convention)::
 
     L(s) = k_r |k13'(x_c)| mu(|w|) A(s) / (J_1 s + b_1'),   A(s) = w_a^2/(s^2 + 2 d_a w_a s + w_a^2)
 

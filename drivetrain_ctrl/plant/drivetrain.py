@@ -2,17 +2,17 @@
 
 Full model (:func:`full_chain`), bodies in order, each in its own frame:
 
-====  ================  ==========================================================  =========
- #    body              contents                                                     frame
-====  ================  ==========================================================  =========
- 0    ``engine``        J1; viscous b1, Coulomb c1 to ground (stall); lagged source  engine
- 1    ``disc``          J2 (clutch disc, damper input); viscous b2                    primary
- 2    ``primary``       J3 (primary shaft, gearbox input); viscous b3                 primary
- 3    ``secondary``     J4 (secondary shaft + differential); viscous b4              secondary
- 4    ``hub``           (1 - tread_fraction) J5 (wheels, hubs); viscous b5; brake    wheel
- 5    ``tread``         tread_fraction J5 (tyre tread ring)                           wheel
- 6    ``vehicle``       M_v; b_v, aerodynamic drag, rolling resistance, slope         vehicle
-====  ================  ==========================================================  =========
+====  =============  ===========================================================  =========
+#     body           contents                                                     frame
+====  =============  ===========================================================  =========
+0     ``engine``     J1; viscous b1, Coulomb c1 to ground (stall); lagged source  engine
+1     ``disc``       J2 (clutch disc, damper input); viscous b2                   primary
+2     ``primary``    J3 (primary shaft, gearbox input); viscous b3                primary
+3     ``secondary``  J4 (secondary shaft + differential); viscous b4              secondary
+4     ``hub``        (1 - tread_fraction) J5 (wheels, hubs); viscous b5; brake    wheel
+5     ``tread``      tread_fraction J5 (tyre tread ring)                          wheel
+6     ``vehicle``    M_v; b_v, aerodynamic drag, rolling resistance, slope        vehicle
+====  =============  ===========================================================  =========
 
 Couplings: ``clutch`` (engine-disc, friction k12(x_c) mu(slip)), ``damper`` (disc-primary, spring
 phi_e and friction k23), ``gear`` (primary-secondary, ratio tau_r, teeth spring h34 with backlash

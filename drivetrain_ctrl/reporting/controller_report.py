@@ -123,7 +123,7 @@ SLIP_DELAY_S: float = 0.3
 STEP_HORIZON_S: float = 1.0
 #: reference steps of the comparison [rpm]: a small one (linear range) and a large one
 STEP_SIZES_RPM: dict[str, float] = {"small": 20.0, "large": -500.0}
-#: the linear prediction "disagrees" when peak |nonlinear - linear| exceeds this fraction of the
+#: the linear prediction "disagrees" when peak ``|nonlinear - linear|`` exceeds this fraction of the
 #: peak linear response
 DISAGREEMENT_THRESHOLD: float = 0.1
 #: samples of the comparison / engagement series and of the frequency grids

@@ -312,9 +312,9 @@ def engagement_metrics(
     ``final_vehicle_speed_kmh``
         Vehicle speed at the end [km/h].
     ``max_vehicle_accel_m_s2``
-        Largest |vehicle acceleration| [m/s^2].
+        Largest ``|vehicle acceleration|`` [m/s^2].
     ``max_vehicle_jerk_m_s3``
-        Largest |jerk| [m/s^3]: difference quotient of the acceleration (from the model rhs) over
+        Largest ``|jerk|`` [m/s^3]: difference quotient of the acceleration (from the model rhs) over
         the sample intervals, inside modes (see the module docstring; comfort target < 10 m/s^3).
     ``lurch_m_s2``
         Jump of the vehicle acceleration at lock-up [m/s^2], after minus before; None without
@@ -329,10 +329,10 @@ def engagement_metrics(
     ``engine_stalled``
         True if the engine's ground friction is ever in its standstill mode.
     ``peak_axle_torque_Nm``
-        Largest |half-shaft torque| [N m] in the wheel frame (``axle`` coupling torque, secondary
+        Largest ``|half-shaft torque|`` [N m] in the wheel frame (``axle`` coupling torque, secondary
         frame, times its ratio D_c); None for the reduced model, which has no axle.
     ``peak_shaft_torque_Nm``
-        Largest |driveline torque| [N m] in the primary-shaft frame, comparable between models:
+        Largest ``|driveline torque|`` [N m] in the primary-shaft frame, comparable between models:
         the gear-mesh coupling ``backlash`` of the full model, the lumped shaft ``backlash``
         (stiffness h_t) of the reduced model. Wheel-frame equivalent: times ``dt.tau_t``.
     ``n_backlash_impacts``, ``n_backlash_crossings``
@@ -357,7 +357,7 @@ def engagement_metrics(
     ``accel_p2p_after_lock_m_s2``
         Peak-to-peak vehicle acceleration [m/s^2] over ``[lock-up, lock-up + 1 s]``.
     ``jerk_max_m_s3``, ``jerk_rms_m_s3``
-        Largest |jerk| and RMS jerk [m/s^3] over the window, from the vehicle acceleration
+        Largest ``|jerk|`` and RMS jerk [m/s^3] over the window, from the vehicle acceleration
         low-pass filtered at 10 Hz (second-order Butterworth, zero phase; :func:`filtered_jerk`).
     ``notes``
         Plain statements about the run (no lock-up within the horizon, engine stall, ...).
