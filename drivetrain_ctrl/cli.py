@@ -26,7 +26,6 @@ TOML file), reported on stderr without a traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import os
@@ -38,7 +37,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from .core.validate import is_finite_real
+from .core.serialize import json_ready
 from .plant.params import (
     DEFAULT_SET,
     DrivetrainParams,
@@ -49,7 +48,8 @@ from .plant.params import (
     load_params,
 )
 from .scenarios.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
-from .sim.run import run_scenario
+from .sim.simulator import SimulationOptions, ZenoError
+from .studies.case import Case, CaseError, simulate_case
 
 __all__ = ["main", "run_simulation"]
 
@@ -137,75 +137,36 @@ def run_simulation(
     Returns ``{"metrics": ..., "timing": ..., "files": [...]}``. Raises :class:`InputError`
     for invalid options and :class:`RunError` if the simulation fails.
     """
-    from .core.serialize import json_ready
-    from .sim.metrics import engagement_metrics
-    from .sim.simulator import InputRangeError, SimulationOptions, ZenoError
-
     tic = time.perf_counter()
     if not isinstance(plots, bool):
         raise InputError(f"plots = {plots!r}: must be True or False")
     out = Path(out)
     _check_out_dir(out)
     try:
-        opts = SimulationOptions() if rtol is None else SimulationOptions(rtol=rtol)
+        SimulationOptions() if rtol is None else SimulationOptions(rtol=rtol)
     except ValueError as exc:
         raise InputError(f"--rtol: {exc}") from None
-    t_stop = scenario.t_end if t_end is None else t_end
-    if not (is_finite_real(t_stop) and t_stop > 0):
-        raise InputError(f"--t-end = {t_stop!r}: must be a finite number > 0 [s]")
-    if scenario.start_time > t_stop:
-        what = (
-            f"--t-end = {t_stop!r}: the run would end"
-            if t_end is not None
-            else f"scenario {scenario.name!r}: t_end = {t_stop!r} s ends"
-        )
-        cmd = "controller.start_s" if scenario.control_start is not None else "the first pedal knot"
-        raise InputError(
-            f"{what} before the start command of scenario {scenario.name!r} at "
-            f"{scenario.start_time:g} s ({cmd}; the metrics measure from there)"
-        )
     try:
-        dt: Any = scenario.drivetrain(params, kind=kind)  # Any: Drivetrain's slots are untyped
-        scenario.initial_state(dt)  # validates the initial state for this model
-    except ValueError as exc:
-        raise InputError(f"scenario {scenario.name!r}: {_msg(exc)}") from None
-    from .control.laws import ControllerError, load_controller
-
-    spec = None
-    if controller is None and scenario.needs_controller:
-        raise InputError(
-            f"scenario {scenario.name!r} needs a controller (it gives the engine-speed reference, "
-            f"not the pedal): add --controller {_controller_names('|')}|FILE.toml"
-        )
-    if controller is not None:
-        if not scenario.needs_controller:
-            raise InputError(
-                f"--controller {controller}: scenario {scenario.name!r} is open loop (it gives the "
-                "pedal signal); drop --controller or use a closed-loop scenario (paper-start)"
-            )
-        try:
-            spec = load_controller(controller)
-        except ControllerError as exc:
-            raise InputError(f"--controller: {exc}") from None
+        scenario.check_horizon(t_end, arg="--t-end")
+    except ScenarioError as exc:
+        raise InputError(str(exc)) from None
     try:
-        # built once (warnings included) for the loading run and the real one
-        ctrl = scenario.make_controller(dt, spec)
-        # load the compiled kernels first (a fraction of a second from numba's cache in a new
-        # process), so that ``wall_time_s`` is the simulation's own time: a 1-ms run of the same
-        # model calls every kernel the real run calls; its failures are the real run's to report
-        tic_load = time.perf_counter()
-        with contextlib.suppress(ZenoError, RuntimeError):
-            run_scenario(
-                scenario, dt, controller=ctrl, options=opts, t_end=min(float(t_stop), 1e-3)
-            )
-        load_s = time.perf_counter() - tic_load
-        res = run_scenario(scenario, dt, controller=ctrl, options=opts, t_end=float(t_stop))
-    except (ControllerError, ScenarioError, InputRangeError) as exc:  # e.g. outside the stroke
-        raise InputError(f"scenario {scenario.name!r}: {exc}") from None
+        case = Case(
+            scenario=scenario,
+            params=params,
+            model=kind,
+            controller=controller,
+            rtol=rtol,
+            t_end=t_end,
+        )
+        run = simulate_case(case, preload=True)
+    except CaseError as exc:
+        raise InputError(str(exc)) from None
     except (ZenoError, RuntimeError) as exc:
         raise RunError(f"{scenario.name} / {kind} model: simulation failed: {exc}") from None
-
-    metrics = engagement_metrics(res, dt, start=scenario.start_time, reference=scenario.reference)
+    res, spec, opts = run.result, run.spec, run.options
+    load_s = run.kernel_load_s
+    metrics = run.metrics
     record: dict[str, Any] = {
         "scenario": scenario.name,
         "parameter_set": params.name,

@@ -172,6 +172,26 @@ class Scenario:
             return max(0.0, float(sig.breakpoints[0]))
         return 0.0
 
+    def check_horizon(self, t_end: float | None = None, *, arg: str = "t_end") -> float:
+        """The run's end [s]: ``t_end``, or this scenario's horizon if None. ScenarioError naming
+        ``arg`` (e.g. ``"--t-end"`` on the command line) if it is not a finite number > 0 or ends
+        before the start command (the metrics measure from there)."""
+        t_stop = self.t_end if t_end is None else t_end
+        if not (is_finite_real(t_stop) and t_stop > 0):
+            raise ScenarioError(f"{arg} = {t_stop!r}: must be a finite number > 0 [s]")
+        if self.start_time > t_stop:
+            what = (
+                f"{arg} = {t_stop!r}: the run would end"
+                if t_end is not None
+                else f"scenario {self.name!r}: t_end = {t_stop!r} s ends"
+            )
+            cmd = "controller.start_s" if self.control_start is not None else "the first pedal knot"
+            raise ScenarioError(
+                f"{what} before the start command of scenario {self.name!r} at "
+                f"{self.start_time:g} s ({cmd}; the metrics measure from there)"
+            )
+        return float(t_stop)
+
     @property
     def needs_controller(self) -> bool:
         """True if the pedal is driven by a closed-loop controller (the scenario gives the

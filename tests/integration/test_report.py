@@ -135,10 +135,11 @@ def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
     """The nominal run of the step comparison is shared by the step sizes, and the scenario's
     controller is built once (the step runs use a state-matched copy of it)."""
     from drivetrain_ctrl.control.laws import ControllerSpec
+    from drivetrain_ctrl.reporting import controller_analysis as A
     from drivetrain_ctrl.reporting import controller_report as R
 
     calls = {"simulate": 0, "build": 0}
-    sim, build = R.simulate, ControllerSpec.build
+    sim, build = A.simulate, ControllerSpec.build
 
     def counting_simulate(*a, **kw):
         calls["simulate"] += 1
@@ -148,10 +149,10 @@ def test_report_simulates_the_nominal_step_run_once(tmp_path, monkeypatch):
         calls["build"] += 1
         return build(self, *a, **kw)
 
-    monkeypatch.setattr(R, "simulate", counting_simulate)
+    monkeypatch.setattr(A, "simulate", counting_simulate)
     monkeypatch.setattr(ControllerSpec, "build", counting_build)
     R.build_report(controller="paper", out=tmp_path)
-    assert calls == {"simulate": 1 + len(R.STEP_SIZES_RPM), "build": 1}
+    assert calls == {"simulate": 1 + len(A.STEP_SIZES_RPM), "build": 1}
 
 
 def test_report_on_a_scenario_too_short_for_the_step_responses(tmp_path):
