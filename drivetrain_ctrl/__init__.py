@@ -47,12 +47,14 @@ from .sim import (
     run_scenario,
     simulate,
 )
+from .studies import Case, run_case
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Actuator",
     "Body",
+    "Case",
     "Chain",
     "Controller",
     "ControllerSpec",
@@ -84,6 +86,7 @@ __all__ = [
     "operating_point_from_result",
     "reduced_model",
     "root_locus",
+    "run_case",
     "run_scenario",
     "signals",
     "simulate",
