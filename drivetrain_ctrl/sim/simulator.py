@@ -59,16 +59,14 @@ class SimulationOptions:
     """Integrator settings (all keyword-only).
 
     rtol, atol: local error tolerances (atol in state units: rad/s, m/s, rad, m). Keep rtol <=
-    1e-7: the full drivetrain has a stiff, lightly damped gear-mesh mode (550-630 Hz, damping
-    ratio 0.01-0.03 in the modes the built-in scenarios visit; ``benchmarks/step_limits.py``) that
-    local errors of a loose tolerance excite, and the damper friction then sticks and slips with it
-    (tip-in: 1888 events at rtol 1e-4 against 63 converged; ``benchmarks/bench_simulate.py``). The default rtol 1e-8 meets 1e-5 s on event times. atol
-    only matters for states near zero (a vehicle at rest, spring twists): the default 1e-7 is three
-    orders below the 1e-4 rad/s speed accuracy the benchmark checks; 1e-9 costs 18 % more steps on
-    engage-ramp for the same accuracy, 1e-6 loses it (``ours_atol_*`` in
-    ``benchmarks/results/simulate.json``). h_max [s]: largest step, so that no
-    stick or break-away episode shorter than about ``h_max`` is stepped over; h_init [s]: first
-    step (at most h_max);
+    1e-7: the full drivetrain has a stiff, lightly damped gear-mesh mode (about 600 Hz, damping
+    ratio a few per cent) that local errors of a loose tolerance excite, and the damper friction
+    then sticks and slips with it (spurious events). The default rtol 1e-8 meets 1e-5 s on event
+    times; atol only matters for states near zero (a vehicle at rest, spring twists) and the
+    default 1e-7 is three orders below the 1e-4 rad/s speed accuracy the benchmark checks (see
+    the performance page of the docs and ``benchmarks/bench_simulate.py``).
+    h_max [s]: largest step, so that no stick or break-away episode shorter than about ``h_max``
+    is stepped over; h_init [s]: first step (at most h_max);
     tol_w [rad/s or m/s]: relative speed treated as zero when deciding modes at an event;
     energy: integrate supplied work and dissipated energies; zeno_count events within
     zeno_window [s] stop the run (:class:`ZenoError`; a guard crossing that changes no mode counts
