@@ -10,6 +10,7 @@ from .laws import (
     UnstableLoopWarning,
     builtin_controllers,
     law6_controller,
+    law6_defaults,
     law6_loop_closed_form,
     load_controller,
     pi_controller,
@@ -26,6 +27,7 @@ __all__ = [
     "builtin_controllers",
     "load_controller",
     "law6_controller",
+    "law6_defaults",
     "law6_loop_closed_form",
     "pi_controller",
 ]

@@ -5,12 +5,11 @@ into a :class:`~drivetrain_ctrl.closedloop.Controller` for a drivetrain and a sc
 The same :class:`Controller` serves the simulation (``simulate(..., controller=...)``) and the linear
 analysis (its ``lti``).
 
-Built-in controllers (:func:`builtin_controllers`):
+Built-in controllers (:func:`builtin_controllers`), TOML files shipped in ``control/builtin/``:
 
 ``paper``
     The paper's law (6), continuous: ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``
-    with ``x_r0``, ``k_r`` from the parameter set (``law6`` section; the paper's 0.07 m and
-    3e-4 m s/rad).
+    with the paper's gains (Section IV): ``x_r0`` = 0.07 m, ``k_r`` = 3e-4 m s/rad.
 ``pi``
     A PI variant on the same signed error, ``x_r = x_r0 + sgn(.) (k_p e + k_i int e)``, with
     anti-windup (the integrator holds while the actuator stroke saturates).
@@ -33,8 +32,8 @@ A controller file (TOML; unknown keys are errors naming the key)::
 
     name = "my-pi"
     law = "pi"                 # "paper" (law 6) or "pi"
-    k_r = 3.0e-4               # [m s/rad] paper law gain (default: the parameter set's law6.k_r)
-    x_r0 = 0.07                # [m] output at zero error (default: law6.x_r0)
+    k_r = 3.0e-4               # [m s/rad] paper law gain (default: the built-in paper's)
+    x_r0 = 0.07                # [m] output at zero error (default: the built-in paper's)
     kp = 3.0e-4                # [m s/rad] PI proportional gain
     ki = 1.5e-3                # [m/rad] PI integral gain
     sample_period_s = 0.01     # optional: sampled controller
@@ -42,11 +41,17 @@ A controller file (TOML; unknown keys are errors naming the key)::
     engage_rate_m_s = 0.05     # latch ramp rate after lock-up
     rate_limit_m_s = 0.5       # optional actuator rate limit
     anti_windup = true
+
+Law (6)'s gains are controller settings, not plant parameters: a spec that leaves ``k_r`` or
+``x_r0`` out takes the built-in ``paper`` controller's value (:func:`law6_defaults`, read from
+``control/builtin/paper.toml``). ``x_r0`` must lie within the actuator stroke of the parameter set
+the controller is built for (checked by :meth:`ControllerSpec.build`).
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 import warnings
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
@@ -55,7 +60,7 @@ from typing import Any
 import control
 import numpy as np
 
-from ..core.registry import load_builtin_or_toml
+from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from ..core.signals import Signal
 from ..core.validate import finite_float, is_finite_real, positive_float, reject_unknown
 from .blocks import Actuator, Controller, LatchRamp, actuator_tf
@@ -66,6 +71,8 @@ __all__ = [
     "ControllerError",
     "ControllerSpec",
     "builtin_controllers",
+    "controller_from_dict",
+    "law6_defaults",
     "load_controller",
     "LAWS",
     "GAIN_RANGE",
@@ -110,8 +117,9 @@ class ControllerSpec:
     """A clutch start controller, as data (see the module docstring for the fields' meaning).
 
     Units: ``k_r``, ``kp`` [m s/rad]; ``ki`` [m/rad]; ``x_r0`` [m]; ``sample_period_s`` [s];
-    ``engage_rate_m_s``, ``rate_limit_m_s`` [m/s]. ``None`` for ``k_r``/``x_r0`` takes the parameter
-    set's ``law6`` values.
+    ``engage_rate_m_s``, ``rate_limit_m_s`` [m/s]. ``None`` for ``k_r``/``x_r0`` takes the built-in
+    ``paper`` controller's values (:func:`law6_defaults`); :attr:`gain_k_r`, :attr:`offset_x_r0`
+    are the values used.
     """
 
     name: str
@@ -170,6 +178,17 @@ class ControllerSpec:
         if not isinstance(self.anti_windup, bool):
             raise ControllerError(f"{w}anti_windup = {self.anti_windup!r}: must be true or false")
 
+    @property
+    def gain_k_r(self) -> float:
+        """Law (6)'s gain used [m s/rad]: ``k_r``, or the built-in paper controller's if None."""
+        return law6_defaults()[0] if self.k_r is None else float(self.k_r)
+
+    @property
+    def offset_x_r0(self) -> float:
+        """The output at zero error used [m]: ``x_r0``, or the built-in paper controller's if
+        None."""
+        return law6_defaults()[1] if self.x_r0 is None else float(self.x_r0)
+
     def anti_windup_time_s(self) -> float | None:
         """Back-calculation time constant T_t [s] of the PI: its integral time kp/ki, at least
         :data:`MIN_ANTI_WINDUP_TIME_S` (None: law (6) has no state, or anti-windup is off)."""
@@ -184,11 +203,11 @@ class ControllerSpec:
         """TOML/JSON-ready form (``None`` fields left out)."""
         return {k: v for k, v in asdict(self).items() if v is not None}
 
-    def lti(self, params: Any) -> control.StateSpace:
+    def lti(self) -> control.StateSpace:
         """The LTI block from the signed speed error [rad/s] to x_r - x_r0 [m]."""
         ts = self.sample_period_s
         if self.law == "paper":
-            k = params.law6.k_r if self.k_r is None else self.k_r
+            k = self.gain_k_r
             return control.ss([], [], [], [[k]], ts) if ts else control.ss([], [], [], [[k]])
         assert self.kp is not None and self.ki is not None
         if ts is None:
@@ -241,8 +260,8 @@ class ControllerSpec:
                 f"controller {self.name!r}: start_time = {start_time!r}: must be a finite "
                 "number [s] or None"
             )
-        lw, act = params.law6, params.actuator
-        x_r0 = lw.x_r0 if self.x_r0 is None else self.x_r0
+        act = params.actuator
+        x_r0 = self.offset_x_r0
         msg = act.outside_stroke("x_r0", x_r0)
         if msg:
             raise ControllerError(
@@ -258,7 +277,7 @@ class ControllerSpec:
             rate = (self.rate_limit_m_s, 10.0 * act.omega_a)
         return Controller(
             name=self.name,
-            lti=self.lti(params),
+            lti=self.lti(),
             measurement=((1.0, "ref"), (-1.0, engine_state)),
             output="pedal",
             reference=reference,
@@ -287,7 +306,7 @@ def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
     """
 
     pm = params.clutch.pedal_map
-    x0 = params.law6.x_r0 if spec.x_r0 is None else spec.x_r0
+    x0 = spec.offset_x_r0
     xs, ys = np.asarray(pm.x, dtype=float), np.asarray(pm.y, dtype=float)
     k = int(np.clip(np.searchsorted(xs, x0, side="right") - 1, 0, len(xs) - 2))
     slope = abs((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]))
@@ -301,7 +320,7 @@ def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
         b1_eff=params.engine.b1,
         actuator=Actuator(act.omega_a, act.delta_a),
     )
-    C = control.tf(spec.lti(params))
+    C = control.tf(spec.lti())
     ts = spec.sample_period_s
     if ts is None:
         return control.tf(control.series(C, plant))
@@ -310,23 +329,42 @@ def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
     return control.tf(control.series(C, pd, delay))
 
 
-#: PI gains of the built-in ``pi`` controllers (integral corner ki/kp = 5 rad/s), chosen on the
-#: reduced model for tracking_rms_rpm <= 120 on paper-start; their margins are in the report
-_PI_KP = 1.0e-3
-_PI_KI = 5.0e-3
+#: the order the built-in controllers are listed (and the demo runs them) in; a file in
+#: ``control/builtin/`` not named here follows, alphabetically
+BUILTIN_ORDER: tuple[str, ...] = ("paper", "pi", "paper-10ms", "pi-10ms")
+
+#: the package whose ``builtin/`` folder holds the built-in controller files
+_PACKAGE = __name__.rpartition(".")[0]
+
+
+@functools.cache
+def _builtin_specs() -> tuple[ControllerSpec, ...]:
+    specs = []
+    for stem, f in builtin_files(_PACKAGE, order=BUILTIN_ORDER).items():
+        spec = load_toml_as(f, controller_from_dict, error=ControllerError)
+        if spec.name != stem:
+            raise ControllerError(f"{f}: name = {spec.name!r}: must be the file's stem {stem!r}")
+        specs.append(spec)
+    return tuple(specs)
 
 
 def builtin_controllers() -> dict[str, ControllerSpec]:
-    """The built-in controllers (see the module docstring)."""
-    specs = [
-        ControllerSpec(name="paper", law="paper"),
-        ControllerSpec(name="pi", law="pi", kp=_PI_KP, ki=_PI_KI),
-        ControllerSpec(name="paper-10ms", law="paper", sample_period_s=0.01, delay_samples=1),
-        ControllerSpec(
-            name="pi-10ms", law="pi", kp=_PI_KP, ki=_PI_KI, sample_period_s=0.01, delay_samples=1
-        ),
-    ]
-    return {s.name: s for s in specs}
+    """The built-in controllers by name: the TOML files in ``control/builtin/`` (package data; see
+    the module docstring)."""
+    return {s.name: s for s in _builtin_specs()}
+
+
+@functools.cache
+def law6_defaults() -> tuple[float, float]:
+    """``(k_r [m s/rad], x_r0 [m])`` of the built-in ``paper`` controller (the paper's Section IV):
+    the values a spec that leaves ``k_r`` or ``x_r0`` out uses. Read from ``paper.toml`` itself,
+    so the file is the one place these numbers are written."""
+    f = builtin_files(_PACKAGE)["paper"]
+    d = read_toml(f, error=ControllerError)
+    for key in ("k_r", "x_r0"):
+        if not is_finite_real(d.get(key)):
+            raise ControllerError(f"{f}: {key} = {d.get(key)!r}: must be a finite number")
+    return float(d["k_r"]), float(d["x_r0"])
 
 
 #: the keys of a controller file: the fields of :class:`ControllerSpec`
@@ -366,11 +404,10 @@ def law6_controller(
 ) -> Controller:
     """The paper's law (6): ``x_r = x_r0 + k_r (omega_r - omega_1) sgn(omega_1 - omega_3)``.
 
-    ``reference`` is omega_r(t) [rad/s]; x_r0, k_r from ``params.law6``; the actuator from
-    ``params.actuator`` with the stroke as saturation. When the clutch locks, the pedal is ramped
-    at ``engage_rate`` [m/s] (> 0) to fully engaged (``None``: no latch). A shortcut for
-    ``ControllerSpec(name="law6", law="paper").build(...)``
-    (:mod:`drivetrain_ctrl.controllers`).
+    ``reference`` is omega_r(t) [rad/s]; x_r0, k_r the paper's (:func:`law6_defaults`); the
+    actuator from ``params.actuator`` with the stroke as saturation. When the clutch locks, the
+    pedal is ramped at ``engage_rate`` [m/s] (> 0) to fully engaged (``None``: no latch). A
+    shortcut for ``ControllerSpec(name="law6", law="paper").build(...)``.
     """
     return _from_spec(
         "law6_controller",

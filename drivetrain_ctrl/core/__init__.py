@@ -3,7 +3,7 @@ input validation, JSON-ready numbers, loading built-ins or TOML files)."""
 
 from __future__ import annotations
 
-from .registry import load_builtin_or_toml, load_toml_as
+from .registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from .serialize import json_ready, round_sig
 from .signals import Signal, constant, ramp, sine, step, table
 from .tables import PwlTable
@@ -29,8 +29,10 @@ __all__ = [
     "PwlTable",
     "json_ready",
     "round_sig",
+    "builtin_files",
     "load_builtin_or_toml",
     "load_toml_as",
+    "read_toml",
     "is_real",
     "is_finite_real",
     "reject_unknown",

@@ -1,8 +1,8 @@
 """Immutable, validated parameters of the dry-clutch drivetrain model.
 
 The parameters follow the symbols of Zanasi, Grossi et al., "Dynamic Modeling and Control of a Car
-Transmission System" (see ``car_transmission_paper.md``); every value is in SI units (m, kg, s, rad,
-N, N m). Each field of each section carries metadata (see :func:`field_info`):
+Transmission System"; every value is in SI units (m, kg, s, rad, N, N m). Each field of each
+section carries metadata (see :func:`field_info`):
 
 ``unit``
     SI unit of the stored value, e.g. ``"kg m^2"``; ``"-"`` for dimensionless values.
@@ -21,7 +21,7 @@ offending value, e.g. ``engine.J1 = -0.2: must be > 0 [kg m^2]``. Derive modifie
 
 Parameter files (TOML) have a ``[meta]`` table (``name``, ``description``), one table per section
 (``[engine]``, ``[clutch]``, ``[damper]``, ``[gearbox]``, ``[driveline]``, ``[vehicle]``,
-``[brake]``, ``[actuator]``, ``[law6]``) and an optional ``[provenance]`` table mapping quoted
+``[brake]``, ``[actuator]``) and an optional ``[provenance]`` table mapping quoted
 dotted field paths to source texts. Lookup tables are written
 ``name = { x = [...], y = [...] }``. Every field is required, with no silent defaults, except
 those whose default is the paper's own choice:
@@ -34,7 +34,11 @@ those whose default is the paper's own choice:
 * ``engine.full_load_curve`` may be omitted when ``engine.torque_model = "linear"`` (the paper's
   ``C_G = K theta``); it is required when ``torque_model = "map"``.
 
-Unknown or misspelt keys are errors (with a "did you mean" suggestion).
+Unknown or misspelt keys are errors (with a "did you mean" suggestion). The one exception is a
+``[law6]`` section (with ``[provenance]`` entries ``"law6.*"``) of older files: law (6)'s gains are
+controller settings (``k_r``, ``x_r0`` of a controller file, :mod:`drivetrain_ctrl.control.laws`),
+so the section is read, ignored and reported with a :class:`ParameterSectionWarning` naming it and
+its values (a plant parameter set cannot set a controller's gains).
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ import dataclasses
 import difflib
 import functools
 import math
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -66,8 +71,8 @@ __all__ = [
     "DrivetrainParams",
     "EngineParams",
     "GearboxParams",
-    "Law6Params",
     "ParameterError",
+    "ParameterSectionWarning",
     "Table",
     "VehicleParams",
     "available_parameter_sets",
@@ -90,6 +95,23 @@ FloatOrArray: TypeAlias = float | NDArray[np.float64]
 
 class ParameterError(ValueError):
     """An invalid, missing or unknown parameter; the message names the dotted field path."""
+
+
+class ParameterSectionWarning(FutureWarning):
+    """A parameter file has a section that is no longer part of the plant's schema (``[law6]``:
+    law (6)'s gains are controller settings); it is ignored. A :class:`FutureWarning`, so it is
+    shown by default to users of scripts and of the command line."""
+
+
+#: sections of older parameter files that are read and ignored, with the place their values
+#: belong now (named in the :class:`ParameterSectionWarning`)
+RETIRED_SECTIONS: dict[str, str] = {
+    "law6": (
+        "law (6)'s gains are controller settings, not plant parameters: give them as k_r "
+        '[m s/rad] and x_r0 [m] in a controller file (law = "paper"; the built-in "paper" '
+        "controller has the paper's 3e-4 and 0.07)"
+    ),
+}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -793,24 +815,6 @@ class ActuatorParams(_Section):
         )
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Law6Params(_Section):
-    """The paper's control law (6): ``x_r = x_r0 + k_r (omega_r - omega1) sgn(omega1 - omega3)``."""
-
-    _section: ClassVar[str] = "law6"
-
-    x_r0: float = _param(
-        "m", "-", "actuator position at zero speed error (within the actuator stroke)"
-    )
-    k_r: float = _param(
-        "m s/rad",
-        "-",
-        "gain from engine-speed error to position reference",
-        min=0.0,
-        min_inclusive=False,
-    )
-
-
 _SECTIONS: dict[str, type[_Section]] = {
     "engine": EngineParams,
     "clutch": ClutchParams,
@@ -820,7 +824,6 @@ _SECTIONS: dict[str, type[_Section]] = {
     "vehicle": VehicleParams,
     "brake": BrakeParams,
     "actuator": ActuatorParams,
-    "law6": Law6Params,
 }
 
 _FIELD_META: dict[str, Mapping[str, Any]] = {
@@ -898,7 +901,6 @@ class DrivetrainParams:
     vehicle: VehicleParams
     brake: BrakeParams
     actuator: ActuatorParams
-    law6: Law6Params
     provenance: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
@@ -915,9 +917,6 @@ class DrivetrainParams:
                     f"{key} = {_fmt(value)}: must be a {cls.__name__}, not {type(value).__name__}"
                 )
         object.__setattr__(self, "provenance", _canonical_provenance(self.provenance))
-        msg = self.actuator.outside_stroke("law6.x_r0", self.law6.x_r0)
-        if msg:
-            raise ParameterError(msg)
 
     def provenance_dict(self) -> dict[str, str]:
         """The provenance as a dict ``{dotted field path: source text}``."""
@@ -1003,9 +1002,11 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
     """Build and validate :class:`DrivetrainParams` from the layout of :func:`params_to_dict`.
 
     Unknown keys raise :class:`ParameterError` (with a suggestion); so do missing keys, except the
-    optional fields listed in the module docstring. ``provenance`` may be omitted.
+    optional fields listed in the module docstring. ``provenance`` may be omitted. A retired
+    section (:data:`RETIRED_SECTIONS`, e.g. ``law6``) and its provenance entries are ignored with
+    a :class:`ParameterSectionWarning` naming the section and its values.
     """
-    data = _mapping("<parameters>", data)
+    data = _drop_retired_sections(_mapping("<parameters>", data))
     allowed = ["meta", *_SECTIONS, "provenance"]
     for key in data:
         if key not in allowed:
@@ -1045,6 +1046,31 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
         provenance=data.get("provenance", {}),
         **sections,
     )
+
+
+def _drop_retired_sections(data: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``data`` without the sections of :data:`RETIRED_SECTIONS` and their provenance entries,
+    warning :class:`ParameterSectionWarning` once per section found."""
+    found = [key for key in RETIRED_SECTIONS if key in data]
+    if not found:
+        return data
+    for key in found:
+        raw = data[key]
+        values = (
+            ", ".join(f"{k} = {_fmt(v)}" for k, v in raw.items())
+            if isinstance(raw, Mapping)
+            else _fmt(raw)
+        )
+        warnings.warn(
+            f"{key}: section [{key}] ({values}) ignored; {RETIRED_SECTIONS[key]}",
+            ParameterSectionWarning,
+            stacklevel=3,
+        )
+    out = {k: v for k, v in data.items() if k not in found}
+    prov = out.get("provenance")
+    if isinstance(prov, Mapping):
+        out["provenance"] = {k: v for k, v in prov.items() if str(k).partition(".")[0] not in found}
+    return out
 
 
 def available_parameter_sets() -> list[str]:

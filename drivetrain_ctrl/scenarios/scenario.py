@@ -26,10 +26,24 @@ A scenario file (TOML) looks like this (rpm, km/h and percent only here, at the 
     values = [0.0]
 
 Unknown keys are errors naming the key.
+
+A value that depends on the parameter set: ``{ idle_rpm = 900.0 }`` in place of ``initial.throttle``
+or of a value of ``inputs.throttle`` is the throttle that holds the free engine (clutch open) at
+900 rpm (:func:`idle_throttle`), resolved when the file is loaded for a parameter set (the default
+set if none is given). ``{throttle0}`` in ``description`` is replaced by the initial throttle (4
+decimals).
+
+A closed-loop scenario has a ``[controller]`` table instead of ``[inputs.pedal]``: the
+engine-speed reference ``reference_rpm`` (a signal table, rpm), the controller's output before it
+starts ``pedal0`` [m] and its start time ``start_s`` [s].
+
+The built-in scenarios (:func:`builtin_scenarios`) are such files, shipped in
+``scenarios/builtin/``: ``engage-ramp``, ``tip-in`` and ``paper-start``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,8 +54,8 @@ from numpy.typing import NDArray
 
 from ..control.blocks import Controller
 from ..control.laws import load_controller
-from ..core.registry import load_builtin_or_toml
-from ..core.signals import Signal, constant, ramp, step
+from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as
+from ..core.signals import Signal
 from ..core.units import kmh_to_m_s, rpm_to_rad_s
 from ..core.validate import is_finite_real, reject_unknown
 from ..plant.drivetrain import INPUTS, Drivetrain
@@ -293,9 +307,51 @@ def _num(where: str, d: dict[str, Any], key: str) -> float:
     return float(v)
 
 
-def scenario_from_dict(d: dict[str, Any]) -> Scenario:
-    """Build a :class:`Scenario` from its TOML form (see the module docstring)."""
+def _resolve_idle(d: dict[str, Any], params: DrivetrainParams | None) -> dict[str, Any]:
+    """``d`` with each ``{idle_rpm = n}`` (in ``initial.throttle`` and in the values of
+    ``inputs.throttle``) replaced by the throttle that holds the free engine of ``params`` (the
+    default set if None) at ``n`` rpm; ``d`` itself is left as it is."""
+    cache: dict[float, float] = {}
+
+    def resolve(where: str, v: Any) -> Any:
+        if not isinstance(v, dict):
+            return v
+        if set(v) != {"idle_rpm"}:
+            raise ScenarioError(
+                f"{where} = {v!r}: a table here must be {{ idle_rpm = <engine speed [rpm]> }} "
+                "(the throttle that holds the free engine at that speed)"
+            )
+        rpm = v["idle_rpm"]
+        if not is_finite_real(rpm) or rpm <= 0:
+            raise ScenarioError(f"{where}.idle_rpm = {rpm!r}: must be a finite number > 0 [rpm]")
+        if rpm not in cache:
+            p = default_params() if params is None else params
+            try:
+                cache[rpm] = idle_throttle(p, float(rpm_to_rad_s(float(rpm))))
+            except ScenarioError as exc:
+                raise ScenarioError(
+                    f"{where}.idle_rpm = {rpm!r}: {exc} (parameter set {p.name!r})"
+                ) from None
+        return cache[rpm]
+
+    out = dict(d)
+    ini = d.get("initial")
+    if isinstance(ini, dict) and "throttle" in ini:
+        out["initial"] = {**ini, "throttle": resolve("initial.throttle", ini["throttle"])}
+    inputs = d.get("inputs")
+    thr = inputs.get("throttle") if isinstance(inputs, dict) else None
+    if isinstance(inputs, dict) and isinstance(thr, dict) and isinstance(thr.get("values"), list):
+        vals = [resolve(f"inputs.throttle.values[{i}]", v) for i, v in enumerate(thr["values"])]
+        out["inputs"] = {**inputs, "throttle": {**thr, "values": vals}}
+    return out
+
+
+def scenario_from_dict(d: dict[str, Any], *, params: DrivetrainParams | None = None) -> Scenario:
+    """Build a :class:`Scenario` from its TOML form (see the module docstring); ``params`` is the
+    parameter set that ``{ idle_rpm = ... }`` values are resolved with (the default set if
+    None)."""
     _reject_unknown("", set(d), _TOP)
+    d = _resolve_idle(d, params)
     for key in ("name", "description"):
         if key in d and not isinstance(d[key], str):
             raise ScenarioError(f"{key} = {d[key]!r}: must be a string")
@@ -325,11 +381,16 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         if "reference_rpm" not in ctl:
             raise ScenarioError("controller.reference_rpm: missing")
         try:
-            reference = Signal.from_dict(ctl["reference_rpm"], name="controller.reference_rpm") * (
-                math.pi / 30.0
-            )
+            rpm = Signal.from_dict(ctl["reference_rpm"], name="controller.reference_rpm")
         except (TypeError, ValueError) as exc:
             raise ScenarioError(str(exc)) from exc
+        # knots converted as initial.engine_speed_rpm is (rpm_to_rad_s): a reference equal to the
+        # initial engine speed in rpm is exactly that speed in rad/s
+        reference = Signal(
+            rpm.times,
+            tuple(float(rpm_to_rad_s(v)) for v in rpm.values),
+            (rpm * (math.pi / 30.0)).sines,
+        )
         if "pedal0" in ctl:
             pedal0 = _num("controller.", ctl, "pedal0")
         if "start_s" in ctl:
@@ -361,9 +422,10 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         raise ScenarioError(
             f"slope_percent = {d['slope_percent']!r}: out of range (|slope| < 1410 %, 86 deg)"
         )
+    throttle0 = _num("initial.", ini, "throttle")
     return Scenario(
         name=name,
-        description=str(d.get("description", "")),
+        description=str(d.get("description", "")).replace("{throttle0}", f"{throttle0:.4f}"),
         gear=gear,
         slope=math.atan(_num("", d, "slope_percent") / 100.0) if "slope_percent" in d else 0.0,
         t_end=_num("", d, "t_end"),
@@ -372,7 +434,7 @@ def scenario_from_dict(d: dict[str, Any]) -> Scenario:
         else 0.0,
         clutch_locked0=locked,
         v_vehicle0=float(kmh_to_m_s(_num("initial.", ini, "vehicle_speed_kmh"))),
-        throttle0=_num("initial.", ini, "throttle"),
+        throttle0=throttle0,
         twist_torque0=_num("initial.", ini, "twist_torque") if "twist_torque" in ini else 0.0,
         inputs=tuple(sigs),
         reference=reference,
@@ -402,112 +464,34 @@ def idle_throttle(params: DrivetrainParams, omega: float) -> float:
     return float(th)
 
 
-#: the paper-start scenario's numbers (issue: Section IV of the paper, Fig. 14)
-PAPER_START = {
-    "idle_rpm": 900.0,
-    "start_s": 0.5,
-    "throttle_start": 0.9,
-    "reference_rpm": 1600.0,
-    "ramp_start_s": 1.5,
-    "ramp_time_s": 0.1,
-    "throttle_end": 0.6,
-    "t_end_s": 4.0,
-    "pedal_open_m": 0.11,
-}
+#: the order the built-in scenarios are listed (and the demo runs them) in; a file in
+#: ``scenarios/builtin/`` not named here follows, alphabetically
+BUILTIN_ORDER: tuple[str, ...] = ("engage-ramp", "tip-in", "paper-start")
 
-
-def paper_start(params: DrivetrainParams | None = None) -> Scenario:
-    """The paper's start (Section IV, Fig. 14): first gear, flat road, vehicle at rest, engine
-    idling at 900 rpm with the throttle that holds it there (:func:`idle_throttle` on
-    ``params``, default parameter set if None) and the clutch open until 0.5 s; at 0.5 s the
-    throttle steps to 0.9, the engine-speed reference omega_r steps to 1600 rpm and the controller
-    starts; from 1.5 s the throttle ramps down to 0.6 within 0.1 s; horizon 4 s."""
-
-    n = PAPER_START
-    p = default_params() if params is None else params
-    w_idle = float(rpm_to_rad_s(n["idle_rpm"]))
-    th0 = idle_throttle(p, w_idle)
-    t0, t1 = n["start_s"], n["ramp_start_s"]
-    throttle = (
-        constant(th0)
-        + step(t0, n["throttle_start"] - th0)
-        + ramp(t1, t1 + n["ramp_time_s"], 0.0, n["throttle_end"] - n["throttle_start"])
-    )
-    return Scenario(
-        name="paper-start",
-        description=(
-            "The paper's start (Section IV, Fig. 14): first gear, flat road, vehicle at rest, "
-            f"engine idling at 900 rpm (throttle {th0:.4f}) with the clutch open; at 0.5 s the "
-            "throttle steps to 0.9, the reference omega_r to 1600 rpm and the controller starts; "
-            "from 1.5 s the throttle ramps down to 0.6 within 0.1 s. Needs a controller."
-        ),
-        gear=1,
-        slope=0.0,
-        t_end=n["t_end_s"],
-        omega_engine0=w_idle,
-        v_vehicle0=0.0,
-        throttle0=th0,
-        twist_torque0=0.0,
-        inputs=(("throttle", throttle), ("brake", constant(0.0))),
-        reference=constant(w_idle) + step(t0, float(rpm_to_rad_s(n["reference_rpm"])) - w_idle),
-        control_start=t0,
-        pedal0=n["pedal_open_m"],
-    )
+#: the package whose ``builtin/`` folder holds the built-in scenario files
+_PACKAGE = __name__.rpartition(".")[0]
 
 
 def builtin_scenarios(params: DrivetrainParams | None = None) -> dict[str, Scenario]:
-    """The built-in scenarios: ``engage-ramp``, ``tip-in`` and ``paper-start`` (its idle throttle
-    from ``params``; the default parameter set if None)."""
-    engage = Scenario(
-        name="engage-ramp",
-        description=(
-            "Vehicle at rest, first gear, engine at constant throttle 0.5 and 1900 rpm; the clutch "
-            "pedal is released on a ramp from fully open (0.11 m) to fully engaged (0.03 m) "
-            "between 0.2 s and 2.2 s, until lock-up."
-        ),
-        gear=1,
-        slope=0.0,
-        t_end=3.0,
-        omega_engine0=float(rpm_to_rad_s(1900.0)),
-        v_vehicle0=0.0,
-        throttle0=0.5,
-        twist_torque0=0.0,
-        inputs=(
-            ("throttle", constant(0.5)),
-            ("pedal", ramp(0.2, 2.2, 0.11, 0.03)),
-            ("brake", constant(0.0)),
-        ),
-    )
-    tip = Scenario(
-        name="tip-in",
-        description=(
-            "Clutch locked, first gear, coasting at 15 km/h with the throttle closed (engine "
-            "braking: backlash in negative contact); throttle step to 0.6 at 0.5 s: the gap is "
-            "crossed and the driveline shuffles."
-        ),
-        gear=1,
-        slope=0.0,
-        t_end=3.0,
-        omega_engine0=0.0,
-        clutch_locked0=True,
-        v_vehicle0=float(kmh_to_m_s(15.0)),
-        throttle0=0.0,
-        twist_torque0=-13.0,
-        inputs=(
-            ("throttle", step(0.5, 0.6)),
-            ("pedal", constant(0.03)),
-            ("brake", constant(0.0)),
-        ),
-    )
-    paper = paper_start(params)
-    return {engage.name: engage, tip.name: tip, paper.name: paper}
+    """The built-in scenarios by name: the TOML files in ``scenarios/builtin/`` (package data),
+    loaded for ``params`` (the default parameter set if None; ``paper-start``'s idle throttle
+    depends on it)."""
+    out = {}
+    for stem, f in builtin_files(_PACKAGE, order=BUILTIN_ORDER).items():
+        sc = load_toml_as(
+            f, functools.partial(scenario_from_dict, params=params), error=ScenarioError
+        )
+        if sc.name != stem:
+            raise ScenarioError(f"{f}: name = {sc.name!r}: must be the file's stem {stem!r}")
+        out[stem] = sc
+    return out
 
 
 def load_scenario(
     source: str | Path | Scenario, *, params: DrivetrainParams | str | Path | None = None
 ) -> Scenario:
-    """A built-in scenario by name (built for ``params``: a parameter set, or its name or TOML
-    file; the default parameter set if None), a scenario TOML file, or a :class:`Scenario`
+    """A built-in scenario by name or a scenario TOML file, loaded for ``params`` (a parameter set,
+    or its name or TOML file; the default parameter set if None), or a :class:`Scenario`
     (returned as it is)."""
     if isinstance(source, Scenario):
         return source
@@ -521,4 +505,10 @@ def load_scenario(
             "or file, or None"
         )
     b = builtin_scenarios(params)
-    return load_builtin_or_toml(source, b, scenario_from_dict, what="scenario", error=ScenarioError)
+    return load_builtin_or_toml(
+        source,
+        b,
+        functools.partial(scenario_from_dict, params=params),
+        what="scenario",
+        error=ScenarioError,
+    )

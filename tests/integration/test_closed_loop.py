@@ -133,19 +133,20 @@ def test_controller_validation_names_the_field() -> None:
 
 @pytest.mark.parametrize("discrete", [False, True])
 def test_pi_variant_of_law6_runs_on_the_switching_plant(discrete: bool) -> None:
-    from drivetrain_ctrl.control.laws import pi_controller
+    from drivetrain_ctrl.control.laws import law6_defaults, pi_controller
     from drivetrain_ctrl.plant.params import default_params
     from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     p = default_params()
+    k_r = law6_defaults()[0]
     sc = load_scenario("paper-start")
     dt = sc.drivetrain(p, kind="reduced")
     assert sc.reference is not None
     c = pi_controller(
         p,
         reference=sc.reference,
-        kp=p.law6.k_r,
-        ki=5 * p.law6.k_r,
+        kp=k_r,
+        ki=5 * k_r,
         dt=0.005 if discrete else None,
         delay_samples=1 if discrete else 0,
         driven_state="omega_primary",

@@ -133,3 +133,36 @@ def test_spec_delay_samples_takes_numpy_integers() -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnstableLoopWarning)  # stability is not the point here
         assert spec.build(P, reference=constant(100.0)).delay_samples == 2
+
+
+# -- built-ins as TOML files (package data) ----------------------------------------------------
+
+
+def test_builtin_controllers_are_the_files_in_control_builtin() -> None:
+    from drivetrain_ctrl.control.laws import BUILTIN_ORDER
+    from drivetrain_ctrl.core.registry import builtin_files
+
+    files = builtin_files("drivetrain_ctrl.control", order=BUILTIN_ORDER)
+    specs = builtin_controllers()
+    assert list(specs) == list(files)
+    assert list(specs)[: len(BUILTIN_ORDER)] == list(BUILTIN_ORDER)
+    for name, f in files.items():
+        assert specs[name] == load_controller(Path(str(f)))  # the same file through the loader
+        assert specs[name].name == name
+
+
+def test_law6_gains_live_in_the_paper_controller_file() -> None:
+    """Law (6)'s gains are the paper's (Section IV): k_r = 3e-4 m s/rad, x_r0 = 0.07 m, written
+    in control/builtin/paper.toml; a spec that leaves them out uses those."""
+    from drivetrain_ctrl.control.laws import law6_defaults
+
+    paper = builtin_controllers()["paper"]
+    assert law6_defaults() == (paper.k_r, paper.x_r0) == (3e-4, 0.07)
+    bare = ControllerSpec(name="bare", law="paper")
+    assert bare.k_r is None and bare.x_r0 is None
+    assert (bare.gain_k_r, bare.offset_x_r0) == law6_defaults()
+    assert _build(bare).offset == 0.07
+    assert complex(control.evalfr(_build(bare).lti, 1j)) == pytest.approx(3e-4)
+    own = ControllerSpec(name="own", law="paper", k_r=1e-4, x_r0=0.06)
+    assert (own.gain_k_r, own.offset_x_r0) == (1e-4, 0.06)
+    assert _build(own).offset == 0.06

@@ -12,7 +12,7 @@ import pytest
 from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import linear as L
 from drivetrain_ctrl.control import Actuator, actuator_tf, law6_loop_closed_form
-from drivetrain_ctrl.control.laws import law6_controller, pi_controller
+from drivetrain_ctrl.control.laws import law6_controller, law6_defaults, pi_controller
 from drivetrain_ctrl.core import signals as sg
 from drivetrain_ctrl.linear.clutch import _judder_threshold
 from drivetrain_ctrl.linear.operating_point import _reduction
@@ -21,6 +21,7 @@ from drivetrain_ctrl.plant.params import default_params
 from drivetrain_ctrl.sim.run import run_scenario
 
 P = default_params()
+K_R = law6_defaults()[0]  # law (6)'s gain: the built-in paper controller's
 XC = 0.0725  # inside the pedal-map piece [0.07, 0.075] (a knot has two slopes)
 W = np.array([0.1, 1.0, 5.0, 37.0, 200.0, 1500.0])
 
@@ -234,7 +235,7 @@ def test_law6_loop_equals_closed_form(kind):
     loop = L.clutch_loop(op, _law6(kind))
     act = P.actuator
     closed = law6_loop_closed_form(
-        k_r=P.law6.k_r,
+        k_r=K_R,
         dk13_dxc=_pedal_slope(P, XC),
         mu=1.0,
         J1=P.engine.J1,
@@ -281,7 +282,7 @@ def test_pi_and_sampled_loops():
     lc = L.clutch_loop(op, c)
     assert not lc.discrete
     # C(s) = kp + ki/s in front of the law-6 plant
-    p6 = L.clutch_loop(op, _law6()).L / P.law6.k_r
+    p6 = L.clutch_loop(op, _law6()).L / K_R
     s = 1j * W
     assert np.allclose(_resp(lc.L, W), (3e-4 + 1e-3 / s) * _resp(p6, W), rtol=1e-7)
     cd = pi_controller(

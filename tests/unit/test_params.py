@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ from drivetrain_ctrl.plant.params import (
     FRAMES,
     DrivetrainParams,
     ParameterError,
+    ParameterSectionWarning,
     Table,
     available_parameter_sets,
     default_params,
@@ -78,7 +80,7 @@ def test_default_params_is_the_passenger_car(p: DrivetrainParams) -> None:
     assert p == load_params("passenger-car")
     assert p.engine.J1 == 0.2 and p.clutch.k12_max == 250.0 and p.vehicle.M_v == 1300.0
     assert p.gearbox.gear_ratios == (3.4, 2.2, 1.5, 1.1, 0.9)
-    assert p.actuator.omega_a == 200.0 and p.law6.x_r0 == 0.07 and p.law6.k_r == 3e-4
+    assert p.actuator.omega_a == 200.0
 
 
 def test_pedal_map_default(p: DrivetrainParams) -> None:
@@ -278,7 +280,6 @@ BAD_FILES = {
         ["engine.full_load_curve", "map"],
     ),
     "stroke reversed": (_set("actuator", "x_max", -0.1), ["actuator.x_max = -0.1"]),
-    "x_r0 outside stroke": (_set("law6", "x_r0", 0.5), ["law6.x_r0 = 0.5"]),
     "section not a table": (_set("meta", "name", 3), ["meta.name = 3"]),
 }
 
@@ -301,9 +302,37 @@ def test_bad_file_raises_naming_field_and_value(case: str, tmp_path: Path) -> No
 
 def test_missing_section_raises(tmp_path: Path) -> None:
     data = _base_dict()
-    del data["law6"]
-    with pytest.raises(ParameterError, match=r"law6: missing section"):
+    del data["actuator"]
+    with pytest.raises(ParameterError, match=r"actuator: missing section"):
         load_params(_write(tmp_path, data))
+
+
+def test_law6_is_not_a_plant_parameter() -> None:
+    assert not any(path.startswith("law6.") for path in field_paths())
+    assert "law6" not in params_to_dict(default_params())
+    with pytest.raises(ParameterError, match=r"law6\.k_r: unknown parameter"):
+        default_params().replace(**{"law6.k_r": 1e-4})
+
+
+def test_an_old_file_with_a_law6_section_loads_with_a_warning_naming_it(tmp_path: Path) -> None:
+    """Law (6)'s gains are controller settings (k_r, x_r0 of a controller file): an older
+    parameter file's [law6] section and its provenance entries are ignored, with a warning that
+    names the section, its values and where they belong now."""
+    data = _base_dict()
+    data["law6"] = {"x_r0": 0.06, "k_r": 5e-4}
+    data["provenance"]["law6.k_r"] = "the paper, Section IV"
+    with pytest.warns(
+        ParameterSectionWarning,
+        match=r"law6: section \[law6\] \(x_r0 = 0\.06, k_r = 0\.0005\) ignored.*controller file",
+    ) as rec:
+        p = load_params(_write(tmp_path, data))
+    assert len(rec) == 1 and issubclass(ParameterSectionWarning, FutureWarning)
+    assert p == default_params()
+    # without the section: no warning
+    del data["law6"], data["provenance"]["law6.k_r"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_params(_write(tmp_path, data)) == default_params()
 
 
 def test_invalid_toml_raises(tmp_path: Path) -> None:

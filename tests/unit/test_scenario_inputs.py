@@ -162,3 +162,54 @@ def test_scenario_file_errors_name_the_file_key(
     target[path[-1]] = value
     with pytest.raises(ScenarioError, match=match):
         scenario_from_dict(d)
+
+
+# -- built-ins as TOML files; values resolved with the parameter set ----------------------------
+
+
+def test_builtin_scenarios_are_the_files_in_scenarios_builtin() -> None:
+    from drivetrain_ctrl.core.registry import builtin_files
+    from drivetrain_ctrl.scenarios.scenario import BUILTIN_ORDER, builtin_scenarios
+
+    files = builtin_files("drivetrain_ctrl.scenarios", order=BUILTIN_ORDER)
+    sc = builtin_scenarios(P)
+    assert list(sc) == list(files) and list(sc)[:3] == list(BUILTIN_ORDER)
+    for name, f in files.items():
+        assert sc[name] == load_scenario(str(f), params=P)  # the same file through the loader
+
+
+def test_paper_start_idle_throttle_follows_the_parameter_set() -> None:
+    from drivetrain_ctrl.core.units import rpm_to_rad_s
+
+    w_idle = float(rpm_to_rad_s(900.0))
+    p2 = P.replace(**{"engine.c1": 15.0})
+    for p in (P, p2):
+        sc = load_scenario("paper-start", params=p)
+        th0 = idle_throttle(p, w_idle)
+        thr = dict(sc.inputs)["throttle"]
+        assert sc.throttle0 == th0 and thr.values[:2] == (th0, th0)
+        assert thr.values[2:] == (0.9, 0.9, 0.6) and thr.times == (0.0, 0.5, 0.5, 1.5, 1.6)
+        assert f"(throttle {th0:.4f})" in sc.description
+        assert sc.omega_engine0 == w_idle and sc.reference is not None
+        assert sc.reference.values == (w_idle, w_idle, float(rpm_to_rad_s(1600.0)))
+    assert load_scenario("paper-start", params=p2).throttle0 > SC.throttle0
+
+
+@pytest.mark.parametrize(
+    ("where", "value", "msg"),
+    [
+        ("initial", {"idle_rpm": -5.0}, r"initial\.throttle\.idle_rpm = -5\.0: must be a finite"),
+        ("initial", {"idle_rpm": "900"}, r"initial\.throttle\.idle_rpm = '900'"),
+        ("initial", {"idle_rmp": 900.0}, r"initial\.throttle = .*idle_rpm = <engine speed"),
+        ("input", {"idle_rpm": float("nan")}, r"inputs\.throttle\.values\[0\]\.idle_rpm = nan"),
+        ("initial", {"idle_rpm": 1.0e5}, r"initial\.throttle\.idle_rpm = 100000\.0: .*outside"),
+    ],
+)
+def test_a_bad_idle_throttle_is_named(where: str, value: object, msg: str) -> None:
+    d = SC.to_dict()
+    if where == "initial":
+        d["initial"]["throttle"] = value
+    else:
+        d["inputs"]["throttle"]["values"][0] = value
+    with pytest.raises(ScenarioError, match=msg):
+        scenario_from_dict(d, params=P)
