@@ -6,13 +6,14 @@ found with :mod:`importlib.resources` so they load from an installed wheel as fr
 
 from __future__ import annotations
 
-import difflib
 import importlib.resources
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any, TypeVar
+
+from .validate import did_you_mean
 
 T = TypeVar("T")
 
@@ -32,8 +33,7 @@ def load_builtin_or_toml(
         return builtins[source]
     p = Path(source)
     if p.suffix != ".toml" or not p.exists():
-        close = difflib.get_close_matches(str(source), sorted(builtins), n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
+        hint = did_you_mean(str(source), sorted(builtins))
         raise error(
             f"{what} {str(source)!r}: not a built-in {what} ({sorted(builtins)}) "
             f"nor an existing .toml file{hint}"

@@ -20,6 +20,8 @@ __all__ = [
     "GRAVITY",
     "RPM_TO_RAD_S",
     "KMH_TO_M_S",
+    "RAD_S_TO_RPM",
+    "M_S_TO_KMH",
     "rpm_to_rad_s",
     "rad_s_to_rpm",
     "kmh_to_m_s",
@@ -35,6 +37,12 @@ RPM_TO_RAD_S: float = math.pi / 30.0
 
 #: One kilometre per hour expressed in m/s [m/s per km/h] (= 1 / 3.6).
 KMH_TO_M_S: float = 1.0 / 3.6
+
+#: One rad/s expressed in rpm [rpm per rad/s] (= 60 / (2 pi)); for scaling signals and arrays.
+RAD_S_TO_RPM: float = 30.0 / math.pi
+
+#: One m/s expressed in km/h [km/h per m/s].
+M_S_TO_KMH: float = 3.6
 
 _ArrayIn = NDArray[Any] | Sequence[float]
 

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Iterable
 
 import numpy as np
 
 __all__ = [
+    "did_you_mean",
     "reject_unknown",
     "is_real",
     "is_finite_real",
@@ -37,6 +38,16 @@ def is_finite_real(value: object) -> bool:
         return False
 
 
+def did_you_mean(key: str, candidates: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest of ``candidates`` to ``key`` (case-insensitive,
+    difflib's ratio >= 0.6), else ``""``: the one hint every misspelt-name error carries."""
+    by_lower: dict[str, str] = {}
+    for c in candidates:
+        by_lower.setdefault(str(c).lower(), str(c))
+    match = difflib.get_close_matches(str(key).lower(), list(by_lower), n=1, cutoff=0.6)
+    return f"; did you mean '{by_lower[match[0]]}'?" if match else ""
+
+
 def reject_unknown(
     where: str, got: Collection[str], allowed: Collection[str], *, error: type[ValueError]
 ) -> None:
@@ -44,8 +55,7 @@ def reject_unknown(
     ``where`` (e.g. ``"initial."``), with a did-you-mean hint or the allowed keys."""
     allowed_sorted = sorted(allowed)
     for k in sorted(set(got) - set(allowed)):
-        close = difflib.get_close_matches(k, allowed_sorted, n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {allowed_sorted}"
+        hint = did_you_mean(k, allowed_sorted) or f"; allowed: {allowed_sorted}"
         raise error(f"{where}{k}: unknown key{hint}")
 
 

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from ..control.laws import ControllerSpec, load_controller
 from ..core.serialize import json_ready
 from ..core.signals import step
+from ..core.units import M_S_TO_KMH, RAD_S_TO_RPM
 from ..linear.clutch import (
     ClutchLoop,
     _controller_sign,
@@ -112,7 +113,7 @@ ENGAGEMENT_RATE_HZ: float = 100.0
 N_FREQ: int = 300
 
 
-_RPM = 30.0 / math.pi  # rad/s -> rpm
+_RPM = RAD_S_TO_RPM  # rad/s -> rpm
 
 
 def _resolve_params(params: Any) -> tuple[DrivetrainParams, str]:
@@ -286,8 +287,8 @@ def _lock_point(
         return None, "no lock-up in the simulated scenario"
     v = float(np.interp(lock_t, T, res.state("v_vehicle")))
     try:
-        op = locked_trim(dtr, vehicle_speed_kmh=v * 3.6)
-        return op, f"locked_trim at the lock-up vehicle speed {v * 3.6:.4g} km/h"
+        op = locked_trim(dtr, vehicle_speed_kmh=v * M_S_TO_KMH)
+        return op, f"locked_trim at the lock-up vehicle speed {v * M_S_TO_KMH:.4g} km/h"
     except (ValueError, RuntimeError) as exc:
         t = min(lock_t + 0.5, float(T[-1]))
         op = operating_point_from_result(res, t, drivetrain=dtr)
@@ -466,7 +467,7 @@ def _engagement_series(res: Any, sc: Scenario, dtr: Drivetrain) -> dict[str, Any
         "omega_driven_rpm": list(map(float, np.interp(t, T, res.state(driven)) * _RPM)),
         "omega_ref_rpm": [float(ref(float(x))) * _RPM for x in t] if ref is not None else None,
         "x_c_m": list(map(float, np.interp(t, T, np.asarray(res.u)[:, ip]))),
-        "v_vehicle_kmh": list(map(float, np.interp(t, T, res.state("v_vehicle")) * 3.6)),
+        "v_vehicle_kmh": list(map(float, np.interp(t, T, res.state("v_vehicle")) * M_S_TO_KMH)),
         "driven_state": driven,
     }
 

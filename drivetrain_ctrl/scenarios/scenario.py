@@ -56,7 +56,14 @@ from ..control.blocks import Controller
 from ..control.laws import load_controller
 from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as
 from ..core.signals import Signal
-from ..core.units import kmh_to_m_s, rpm_to_rad_s
+from ..core.units import (
+    RAD_S_TO_RPM,
+    RPM_TO_RAD_S,
+    kmh_to_m_s,
+    m_s_to_kmh,
+    rad_s_to_rpm,
+    rpm_to_rad_s,
+)
 from ..core.validate import is_finite_real, reject_unknown
 from ..plant.drivetrain import INPUTS, Drivetrain
 from ..plant.params import DrivetrainParams, default_params, load_params
@@ -168,7 +175,7 @@ class Scenario:
             (vmin, tmin), _ = self.reference.extremes(0.0, self.t_end)
             if vmin < 0.0:
                 raise ScenarioError(
-                    f"{self.name}: controller.reference_rpm = {vmin * 30.0 / math.pi:.6g} rpm at "
+                    f"{self.name}: controller.reference_rpm = {vmin * RAD_S_TO_RPM:.6g} rpm at "
                     f"t = {tmin:g} s: an engine-speed reference must be >= 0"
                 )
         if not (math.isfinite(self.pedal0) and 0.0 <= self.pedal0 <= 0.5):
@@ -264,8 +271,8 @@ class Scenario:
             "slope_percent": 100.0 * math.tan(self.slope),
             "t_end": self.t_end,
             "initial": {
-                "engine_speed_rpm": self.omega_engine0 * 60.0 / (2 * math.pi),
-                "vehicle_speed_kmh": self.v_vehicle0 * 3.6,
+                "engine_speed_rpm": rad_s_to_rpm(self.omega_engine0),
+                "vehicle_speed_kmh": m_s_to_kmh(self.v_vehicle0),
                 "throttle": self.throttle0,
                 "twist_torque": self.twist_torque0,
                 "clutch_locked": self.clutch_locked0,
@@ -274,7 +281,7 @@ class Scenario:
             **(
                 {
                     "controller": {
-                        "reference_rpm": (self.reference * (30.0 / math.pi)).to_dict(),
+                        "reference_rpm": (self.reference * RAD_S_TO_RPM).to_dict(),
                         "pedal0": self.pedal0,
                         **(
                             {"start_s": self.control_start}
@@ -389,7 +396,7 @@ def scenario_from_dict(d: dict[str, Any], *, params: DrivetrainParams | None = N
         reference = Signal(
             rpm.times,
             tuple(float(rpm_to_rad_s(v)) for v in rpm.values),
-            (rpm * (math.pi / 30.0)).sines,
+            (rpm * RPM_TO_RAD_S).sines,
         )
         if "pedal0" in ctl:
             pedal0 = _num("controller.", ctl, "pedal0")
