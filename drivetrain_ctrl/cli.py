@@ -10,7 +10,7 @@ Subcommands::
     drivetrain-ctrl scenarios list
 
 ``simulate`` writes into DIR: ``trajectory.csv`` and ``events.csv`` (column names carry units),
-``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.metrics.engagement_metrics`;
+``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.sim.metrics.engagement_metrics`;
 deterministic: the same inputs give the same bytes), ``timing.json`` (``wall_time_s``: the
 simulation's own wall time [s], measured after a 1-ms run of the same model has loaded the
 compiled kernels, whose time is ``kernel_load_s``; ``total_wall_time_s`` including the outputs;

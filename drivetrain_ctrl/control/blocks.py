@@ -326,7 +326,7 @@ class Controller:
 
 def actuator_tf(actuator: Actuator) -> control.TransferFunction:
     """x_r -> x_c [m/m]: ``w_a^2 / (s^2 + 2 d_a w_a s + w_a^2)`` (paper, Sec. IV). TypeError
-    if ``actuator`` is not an :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    if ``actuator`` is not an :class:`~drivetrain_ctrl.control.blocks.Actuator`."""
     if not isinstance(actuator, Actuator):
         raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
     w, d = actuator.omega, actuator.delta

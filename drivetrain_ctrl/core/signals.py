@@ -12,7 +12,7 @@ capacity [N m]). Time is in seconds.
 
 Examples
 --------
->>> from drivetrain_ctrl.signals import step, ramp, constant
+>>> from drivetrain_ctrl.core.signals import step, ramp, constant
 >>> u = constant(0.2) + step(1.0, 0.3)          # 0.2, then 0.5 from t = 1 s
 >>> float(u(0.5)), float(u(1.0))
 (0.2, 0.5)

@@ -1,6 +1,6 @@
 """Compiled (numba) kernels of a chain model and the event-driven hybrid integrator.
 
-Everything works on :class:`ChainData` (arrays made by :mod:`drivetrain_ctrl.model`), so the
+Everything works on :class:`ChainData` (arrays made by :mod:`drivetrain_ctrl.plant.model`), so the
 same code serves the Python API (``Model.rhs`` etc.), the linearisation and the simulator. The
 modules, each importing only those above it:
 

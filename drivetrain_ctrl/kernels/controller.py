@@ -1,10 +1,10 @@
 """Inputs of a run: the input signals' linear pieces and the closed-loop controller.
 
-Input signals are packed by :func:`drivetrain_ctrl.signals.pack_signals` into ``S = (st, sv,
+Input signals are packed by :func:`drivetrain_ctrl.core.signals.pack_signals` into ``S = (st, sv,
 snk, ssin, sns)``: knots ``st``/``sv`` per signal and additive sine terms; within an interval
 between breakpoints each signal is ``a + b (t - t_ref)`` plus its sines (:func:`set_interval`,
 :func:`eval_inputs`). An optional controller (:class:`CtrlData`, built by
-:mod:`drivetrain_ctrl.closedloop`) overrides one input (:func:`eval_u`); its continuous states
+:mod:`drivetrain_ctrl.control.blocks`) overrides one input (:func:`eval_u`); its continuous states
 are integrated with the plant (:func:`cl_derivs`), its discrete block states ``cs`` change at
 its guards (:func:`cl_guards`, :func:`cl_update`) and, if it is discrete, at its samples
 (:func:`cl_sample`).
@@ -53,7 +53,7 @@ def set_interval(S, t_ref, ua, ub):
 
 
 class CtrlData(NamedTuple):
-    """Array form of a closed-loop controller (see :mod:`drivetrain_ctrl.closedloop`).
+    """Array form of a closed-loop controller (see :mod:`drivetrain_ctrl.control.blocks`).
 
     Measurement ``e = sum coef_k * (state or signal)``; SISO LTI ``(A, B, C, D)`` (continuous, or
     discrete with period ``Ts`` and a delay of ``n_delay`` samples); then, in order: sign switching

@@ -17,7 +17,7 @@ Dormand-Prince 5(4) Runge-Kutta method (:mod:`.dopri`):
   (:mod:`.stability`);
 * supplied work and each element's dissipated energy are integrated with the state.
 
-An optional closed loop (:mod:`drivetrain_ctrl.closedloop`, :mod:`.controller`) computes the
+An optional closed loop (:mod:`drivetrain_ctrl.control.blocks`, :mod:`.controller`) computes the
 inputs from controller states integrated together with the plant.
 """
 

@@ -1,9 +1,9 @@
 """The chain model's physics on :class:`ChainData`: forces, state derivative, stuck constraints
 and mode matrices, projection, guards, energy and powers, Jacobians, coupling torques.
 
-:class:`ChainData` is the array form of a :class:`~drivetrain_ctrl.chain.Chain` (made by
-:mod:`drivetrain_ctrl.model`), so the same code serves the Python API (``Model.rhs`` etc.), the
-linearisation and the simulator's hot loop. Conventions (see :mod:`drivetrain_ctrl.chain`):
+:class:`ChainData` is the array form of a :class:`~drivetrain_ctrl.plant.chain.Chain` (made by
+:mod:`drivetrain_ctrl.plant.model`), so the same code serves the Python API (``Model.rhs`` etc.), the
+linearisation and the simulator's hot loop. Conventions (see :mod:`drivetrain_ctrl.plant.chain`):
 
 * state ``x = [omega (n), q (springs), position (tracked bodies), lag states]``;
 * friction element mode ``fm[f]``: ``STUCK = 0``, ``SLIP_POS = 1``, ``SLIP_NEG = 2``,
@@ -30,7 +30,7 @@ ARG_TWIST, ARG_SLIP, ARG_SPEED, ARG_INPUT = 0, 1, 2, 3
 
 
 class ChainData(NamedTuple):
-    """Array form of a :class:`~drivetrain_ctrl.chain.Chain` (SI units, upstream frames)."""
+    """Array form of a :class:`~drivetrain_ctrl.plant.chain.Chain` (SI units, upstream frames)."""
 
     M: F64  # (n,) inertia [kg m^2] / mass [kg]
     visc: F64  # (n,)

@@ -142,7 +142,7 @@ def _check_model(model: Any) -> str:
 
 def _tf_dict(sys: Any) -> dict[str, Any]:
     """Coefficients (descending powers) of the SISO ``sys`` from
-    :func:`~drivetrain_ctrl.linear.trim_tf` (leading numerator round-off dropped where the Markov
+    :func:`~drivetrain_ctrl.linear.linearisation.trim_tf` (leading numerator round-off dropped where the Markov
     parameter behind it is zero). No clipping relative to the largest coefficient: a model's
     polynomials span many decades (the full model's plant: 1 to 1e30)."""
     t = trim_tf(sys)

@@ -152,7 +152,7 @@ def render_report(data: dict[str, Any], out: str | Path) -> Report:
 
 def make_figures(data: dict[str, Any]) -> dict[str, Any]:
     """``{name: Figure}``: bode, root_locus, nyquist, step, engagement, lock (from ``data``;
-    :func:`drivetrain_ctrl.plotting.report_figures`)."""
+    :func:`drivetrain_ctrl.reporting.figures.report_figures`)."""
     from .figures import report_figures
 
     return dict(report_figures(data))

@@ -230,9 +230,9 @@ class Scenario:
             raise ScenarioError(f"{self.name}: {msg} of parameter set {params.name!r}")
 
     def make_controller(self, dt: Drivetrain, controller: Any) -> Any:
-        """The closed-loop :class:`~drivetrain_ctrl.closedloop.Controller` of this scenario on
+        """The closed-loop :class:`~drivetrain_ctrl.control.blocks.Controller` of this scenario on
         drivetrain ``dt`` from ``controller``: a built-in name (``paper``, ``pi``, ...), a
-        controller TOML file, a :class:`~drivetrain_ctrl.controllers.ControllerSpec`, or a ready
+        controller TOML file, a :class:`~drivetrain_ctrl.control.laws.ControllerSpec`, or a ready
         ``Controller`` (returned as is). ``None`` gives None (open loop)."""
         if controller is None:
             return None

@@ -1,6 +1,6 @@
 """Clutch-engagement figures of merit of a simulation run (JSON-ready, deterministic).
 
-:func:`engagement_metrics` condenses a :class:`~drivetrain_ctrl.simulate.SimulationResult` into a
+:func:`engagement_metrics` condenses a :class:`~drivetrain_ctrl.sim.simulator.SimulationResult` into a
 flat dict of the standard figures of merit of a dry-clutch engagement (Della Gatta et al., "A survey
 on modeling and engagement control for automotive dry clutch", Mechatronics 55 (2018)): engagement
 (lock-up) time, friction energy dissipated in the clutch, lurch and jerk of the vehicle, engine
@@ -49,7 +49,7 @@ F64 = NDArray[np.float64]
 
 
 class DrivetrainLike(Protocol):
-    """What :func:`engagement_metrics` uses of a :class:`~drivetrain_ctrl.drivetrain.Drivetrain`."""
+    """What :func:`engagement_metrics` uses of a :class:`~drivetrain_ctrl.plant.drivetrain.Drivetrain`."""
 
     @property
     def kind(self) -> str: ...
@@ -362,8 +362,8 @@ def engagement_metrics(
     ``notes``
         Plain statements about the run (no lock-up within the horizon, engine stall, ...).
 
-    ``dt`` may be None for a model not built by :class:`~drivetrain_ctrl.drivetrain.Drivetrain`
-    (e.g. a :func:`~drivetrain_ctrl.chain.two_body_clutch` test chain). ``vehicle`` and
+    ``dt`` may be None for a model not built by :class:`~drivetrain_ctrl.plant.drivetrain.Drivetrain`
+    (e.g. a :func:`~drivetrain_ctrl.plant.chain.two_body_clutch` test chain). ``vehicle`` and
     ``engine`` name the speed states used for the vehicle and engine figures (for a rotational
     ``vehicle`` state the acceleration figures are in rad/s^2, rad/s^3 and the final speed is
     None); ``clutch`` names the clutch friction element. Figures whose state or element does not

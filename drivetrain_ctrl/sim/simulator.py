@@ -1,9 +1,9 @@
 """Exact switching simulation of a chain model: options, runner and :class:`SimulationResult`.
 
->>> from drivetrain_ctrl.params import default_params
->>> from drivetrain_ctrl.drivetrain import full_model
+>>> from drivetrain_ctrl.plant.params import default_params
+>>> from drivetrain_ctrl.plant.drivetrain import full_model
 >>> from drivetrain_ctrl import signals as sg
->>> from drivetrain_ctrl.simulate import simulate
+>>> from drivetrain_ctrl.sim.simulator import simulate
 >>> dt = full_model(default_params())
 >>> x0 = dt.rigid_state(omega_engine=200.0, v_vehicle=0.0, throttle=0.5)
 >>> res = simulate(dt.model, x0, {"throttle": sg.constant(0.5),
@@ -477,7 +477,7 @@ def simulate(
     """Simulate ``model`` from state ``x0`` at ``t0`` [s] to ``t_end`` [s] with input signals.
 
     ``inputs`` maps every input name of the model to a :class:`Signal` (or a constant); with a
-    ``controller`` (:class:`~drivetrain_ctrl.closedloop.Controller`) the input it drives is
+    ``controller`` (:class:`~drivetrain_ctrl.control.blocks.Controller`) the input it drives is
     computed in the loop and must not be given; ``controller_initial`` is its initial value (e.g.
     the actuator position [m]). Returns a
     :class:`SimulationResult`; raises :class:`ZenoError` if events accumulate (unless

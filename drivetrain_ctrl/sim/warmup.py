@@ -1,4 +1,4 @@
-"""Compile (or load from numba's cache) every kernel once: ``python -m drivetrain_ctrl.warmup``.
+"""Compile (or load from numba's cache) every kernel once: ``python -m drivetrain_ctrl.sim.warmup``.
 
 The first call in a fresh environment compiles the hybrid integrator (about a minute or two);
 later processes load the cached machine code. ``./dev`` runs this before the tests so that
