@@ -306,7 +306,12 @@ class FlatGeometry:
         self.laws = (
             law_from_table(sp.x, sp.y, extrapolation="linear", odd=True),
             deadzone_law(self.g34, 1.0),
-            law_from_table(clu.pedal_map.x, clu.pedal_map.y, extrapolation="clamp", odd=False),
+            law_from_table(  # clutch capacity k12 [N m] = k12_max * shape(x_c)
+                clu.pedal_map.x,
+                tuple(clu.k12_max * s for s in clu.pedal_map.y),
+                extrapolation="clamp",
+                odd=False,
+            ),
         )
         self.pedal_knots = self.laws[2].bounds
         self._pl: dict[tuple[bool, ...], tuple[F64 | None, F64]] = {}

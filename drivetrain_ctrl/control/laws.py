@@ -63,6 +63,7 @@ import numpy as np
 from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from ..core.signals import Signal
 from ..core.validate import finite_float, is_finite_real, positive_float, reject_unknown
+from ..plant.drivetrain import clutch_friction
 from .blocks import Actuator, Controller, LatchRamp, actuator_tf
 
 __all__ = [
@@ -268,9 +269,7 @@ class ControllerSpec:
                 f"controller {self.name!r}: {msg} of parameter set {params.name!r}"
             )
         self.check_stability(params)
-        latch = LatchRamp(
-            "clutch", "stuck", self.engage_rate_m_s, float(params.clutch.pedal_map.x[0])
-        )
+        latch = LatchRamp("clutch", "stuck", self.engage_rate_m_s, _engaged_position(params))
         rate = None
         if self.rate_limit_m_s is not None:
             # a first-order follower of bandwidth 10 omega_a, limited to the rate
@@ -293,23 +292,29 @@ class ControllerSpec:
         )
 
 
+def _engaged_position(params: Any) -> float:
+    """x_c [m] of full engagement: the first knot of the clutch element's capacity table."""
+    table = clutch_friction(params).capacity_table
+    assert table is not None
+    return float(table.x[0])
+
+
 def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
     """Loop gain of ``spec`` in slip with a constant friction coefficient, at x_c = x_r0.
 
-    ``L = C(s) |k13'(x_r0)| A(s) / (J_1 s + b_1)``: controller LTI block ``C`` [m s/rad], pedal-map
-    slope ``k13'`` [N m/m], actuator ``A`` [-], engine inertia ``J_1`` [kg m^2] and viscous
-    friction ``b_1`` [N m s/rad] (the Coulomb part of the engine friction is constant in slip and
-    does not enter). The same on both sign branches of law (6): the sign switch and the sign of the
+    ``L = C(s) |k13'(x_r0)| A(s) / (J_1 s + b_1)``: controller LTI block ``C`` [m s/rad], clutch
+    capacity slope ``k13' = dk13/dx_c`` [N m/m] (eq. (5); the clutch element's
+    ``capacity_slope``), actuator ``A`` [-], engine inertia ``J_1`` [kg m^2] and viscous friction
+    ``b_1`` [N m s/rad] (the Coulomb part of the engine friction is constant in slip and does not
+    enter). The same on both sign branches of law (6): the sign switch and the sign of the
     clutch torque cancel. Sampled controllers: the plant is discretised with a zero-order hold at
     the sample period and the transport delay is ``z^-d``. A first check used by :meth:`build`;
     the linear-analysis module gives the full picture (slip-dependent mu, driveline coupling).
     """
 
-    pm = params.clutch.pedal_map
     x0 = spec.offset_x_r0
-    xs, ys = np.asarray(pm.x, dtype=float), np.asarray(pm.y, dtype=float)
-    k = int(np.clip(np.searchsorted(xs, x0, side="right") - 1, 0, len(xs) - 2))
-    slope = abs((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]))
+    # k13'(x_r0): the clutch element's capacity slope (at a knot, the piece towards opening)
+    slope = abs(clutch_friction(params).capacity_slope(x0, side="right"))
     act = params.actuator
     # the plant |k13'| A(s) / (J_1 s + b_1): law (6)'s loop with unit gain, the controller apart
     plant = law6_loop_closed_form(

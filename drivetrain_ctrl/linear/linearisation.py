@@ -17,7 +17,6 @@ from ..plant.drivetrain import Drivetrain
 from .operating_point import (
     INPUT_ALIASES,
     OperatingPoint,
-    _capacity,
     _friction,
     _frozen,
     _mu_ratio,
@@ -84,7 +83,7 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
     i = int(D.f_idx[fc])
     ratio = float(D.ratio[i])
     code = mode.fm[fc]
-    cap = _capacity(m, fc, u, mode)
+    cap = m.capacity(fc, u, mode)
     mu, dmu = _mu_ratio(m, fc, x, mode)
     c = 0.0
     gain = 0.0

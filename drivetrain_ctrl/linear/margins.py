@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from ..control.blocks import Actuator, Controller, require_controller
 from ..core.serialize import json_ready
 from ..core.validate import is_finite_real
+from ..plant.drivetrain import clutch_friction
 from .clutch import _slip_mode_poles_of, clutch_loop
 from .linearisation import linearise, natural_frequency_damping, trim_tf
 from .operating_point import OperatingPoint, rebuild_operating_point, require_op
@@ -377,10 +378,21 @@ class RootLocus:
 
 
 def _scaled_pedal_map(params: Any, x_c: float, factor: float) -> Any:
-    pm = params.clutch.pedal_map
-    k0 = float(pm(x_c))
-    y = np.clip(k0 + factor * (np.asarray(pm.y) - k0), 0.0, params.clutch.k12_max)
-    return params.replace(**{"clutch.pedal_map": {"x": list(pm.x), "y": [float(v) for v in y]}})
+    """``params`` with the clutch capacity k12 [N m] at the knots moved about its value at
+    ``x_c`` [m] by ``factor`` in slope, clipped to [0, k12_max]; its value at full engagement is
+    the new capacity scale ``k12_max``, the rest the new shape."""
+    fr = clutch_friction(params)
+    table = fr.capacity_table
+    assert table is not None
+    k0 = fr.capacity(float(x_c))
+    y = np.clip(k0 + factor * (np.asarray(table.y) - k0), 0.0, params.clutch.k12_max)
+    top = float(np.max(y))
+    return params.replace(
+        **{
+            "clutch.k12_max": top,
+            "clutch.pedal_map": {"x": list(table.x), "y": [float(v) / top for v in y]},
+        }
+    )
 
 
 def _values(values: Any) -> list[float]:

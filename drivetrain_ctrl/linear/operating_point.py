@@ -239,21 +239,6 @@ def _friction(model: Model, name: str) -> int:
     return model.friction_index(name)
 
 
-def _capacity(model: Model, f: int, u: F64, mode: Mode) -> float:
-    """Kinetic capacity at zero slip of friction ``f`` [N m or N] (same law as the kernels)."""
-    D = model.data
-    base = 1.0
-    ui = int(D.f_uidx[f])
-    if ui >= 0:
-        kt = int(D.f_table[f])
-        if kt < 0:
-            base = float(u[ui])
-        else:
-            r = mode.reg[kt]
-            base = float(D.t_s[kt, r] * u[ui] + D.t_o[kt, r])
-    return float(D.f_scale[f]) * base
-
-
 def _mu_ratio(model: Model, f: int, x: F64, mode: Mode) -> tuple[float, float]:
     """(mu(|w|)/mu(0), its slope d mu/d|w| [s/rad]) of friction ``f`` in ``mode``."""
     D = model.data
@@ -283,7 +268,7 @@ def _certificate(
     margins = []
     for f, fi in enumerate(model.frictions):
         if mode.fm[f] == K.STUCK:
-            cap = float(model.data.f_static[f]) * _capacity(model, f, u, mode)
+            cap = float(model.data.f_static[f]) * model.capacity(f, u, mode)
             lam = stuck[fi.name]
             margins.append(StuckMargin(fi.name, cap, lam, cap - abs(lam)))
     slip = slip_acc = ttl = None
@@ -404,11 +389,17 @@ def _check_brake(v: object, dt: Drivetrain) -> float:
     return br
 
 
+def _pedal_knots(dt: Drivetrain) -> tuple[float, float]:
+    """First (fully engaged) and last knot x_c [m] of the model's clutch capacity table."""
+    table = dt.model.friction("clutch").capacity_table
+    assert table is not None
+    return float(table.x[0]), float(table.x[-1])
+
+
 def _check_pedal(dt: Drivetrain, v: object) -> float:
     """``x_c`` [m] inside the pedal map's knots (the map is clamped outside them)."""
     xc = finite_float("x_c", v)
-    pm = dt.params.clutch.pedal_map
-    lo, hi = float(pm.x[0]), float(pm.x[-1])
+    lo, hi = _pedal_knots(dt)
     if not lo <= xc <= hi:
         raise ValueError(f"x_c = {v!r} m: outside the pedal map's range [{lo!r}, {hi!r}] m")
     return xc
@@ -471,7 +462,7 @@ def slip_operating_point(
             xd = m.rhs(x, u, mode_of(x))
             return float(xd[ip] - ratio * xd[iv])
 
-        cap = abs(_capacity(m, _friction(m, "clutch"), u, mode_of(state(0.0))))
+        cap = abs(m.capacity("clutch", u, mode_of(state(0.0))))
         hi = 2.0 * cap + 1000.0
         try:
             T0 = float(scipy.optimize.brentq(mismatch, -hi, hi, xtol=1e-10))
@@ -485,7 +476,7 @@ def slip_operating_point(
     if mode.fm[fc] not in (K.SLIP_POS, K.SLIP_NEG):
         raise ValueError(
             f"x_c = {xc!r} m: the clutch is {m.mode_names(mode)['clutch']!r} (capacity "
-            f"{_capacity(m, fc, u, mode):.6g} N m), not slipping"
+            f"{m.capacity(fc, u, mode):.6g} N m), not slipping"
         )
     recipe = (
         "slip",
@@ -537,7 +528,7 @@ def locked_trim(
             dt = Drivetrain(dt.params, kind=dt.kind, gear=dt.gear, slope=s)
     m = dt.model
     v = kmh_to_m_s(vk)
-    xc = float(dt.params.clutch.pedal_map.x[0]) if x_c is None else _check_pedal(dt, x_c)
+    xc = _pedal_knots(dt)[0] if x_c is None else _check_pedal(dt, x_c)
     br = _check_brake(brake, dt)
     w = dt.vehicle_speed_to_primary(v)
     x0 = dt.rigid_state(omega_engine=w, v_vehicle=v, throttle=0.3)

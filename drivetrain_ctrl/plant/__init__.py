@@ -13,7 +13,14 @@ from .chain import (
     LaggedSource,
     Spring,
 )
-from .drivetrain import INPUTS, Drivetrain, full_model, reduced_figures, reduced_model
+from .drivetrain import (
+    INPUTS,
+    Drivetrain,
+    clutch_friction,
+    full_model,
+    reduced_figures,
+    reduced_model,
+)
 from .model import Mode, Model
 from .params import (
     DrivetrainParams,
@@ -36,6 +43,7 @@ __all__ = [
     "Model",
     "Mode",
     "Drivetrain",
+    "clutch_friction",
     "full_model",
     "reduced_model",
     "reduced_figures",

@@ -22,11 +22,16 @@ blocks.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import overload
 
-from ..core.tables import PwlTable
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.tables import PwlTable, _pwl_clamped
 from ..core.validate import (
     check_finite,
     check_name,
@@ -162,6 +167,64 @@ class Friction:
                 f"{self.name}: mode_names = {self.mode_names!r}: must be 4 distinct non-empty "
                 "names (stuck, slip+, slip-, open)"
             )
+
+    @overload
+    def capacity(self, v: float, region: int | None = None) -> float: ...
+    @overload
+    def capacity(
+        self, v: NDArray[np.float64], region: int | None = None
+    ) -> NDArray[np.float64]: ...
+    def capacity(
+        self, v: float | NDArray[np.float64], region: int | None = None
+    ) -> float | NDArray[np.float64]:
+        """Kinetic capacity at zero slip [N m or N] with the capacity input at ``v`` (its unit).
+
+        ``scale * base`` with ``base`` = 1 (no ``capacity_input``), ``v`` (no table) or
+        ``capacity_table(v)``, the table evaluated as the kernels do: ``slope_r v + offset_r``
+        on its region ``r`` (0 below the first knot, ``k`` between knots ``k-1`` and ``k``, a
+        knot in the piece on its left; clamped beyond the ends). ``region`` imposes ``r`` (the
+        region a :class:`~drivetrain_ctrl.plant.model.Mode` holds); None takes the region of
+        ``v``. For the car's clutch this is the transmissible torque k12(x_c) of eq. (1) (k13(x_c)
+        of the reduced model, eq. (5) and Fig. 12): ``k12_max * pedal_map(x_c)`` [N m] of the
+        pedal position x_c [m]. An array ``v`` (with ``region`` None) gives an array.
+        """
+        if self.capacity_input is None:
+            return float(self.scale * 1.0) if np.ndim(v) == 0 else np.full(np.shape(v), self.scale)
+        if self.capacity_table is None:
+            if np.ndim(v) == 0:
+                return float(self.scale * float(v))
+            return np.asarray(self.scale * np.asarray(v, dtype=np.float64))
+        bounds, slopes, offs = _pwl_clamped(self.capacity_table)
+        if np.ndim(v) == 0:
+            r = bisect.bisect_left(bounds, float(v)) if region is None else int(region)
+            return float(self.scale * (slopes[r] * float(v) + offs[r]))
+        a = np.asarray(v, dtype=np.float64)
+        ri = np.searchsorted(np.asarray(bounds), a, side="left") if region is None else region
+        s_arr, o_arr = np.asarray(slopes), np.asarray(offs)
+        return np.asarray(self.scale * (s_arr[ri] * a + o_arr[ri]))
+
+    def capacity_slope(self, v: float, side: str = "right") -> float:
+        """Slope d capacity / d v [N m or N per unit of the input] of :meth:`capacity` at ``v``.
+
+        0 without a capacity input, ``scale`` without a table; with a table, ``scale`` times the
+        slope of its piece at ``v``: at a knot the piece on ``side`` (``"right"`` or ``"left"``),
+        beyond the knots the end piece (the gain of the map next to its end, where the clamped
+        table itself is flat). For the car's clutch: k12'(x_c) = dk13/dx_c [N m/m] (eq. (5)), the
+        gain from pedal position to clutch torque in slip.
+        """
+        if side not in ("right", "left"):
+            raise ValueError(f"{self.name}: side = {side!r}: must be 'right' or 'left'")
+        if self.capacity_input is None:
+            return 0.0
+        t = self.capacity_table
+        if t is None:
+            return float(self.scale)
+        if len(t.x) == 1:
+            return 0.0
+        x = float(v)
+        k = (bisect.bisect_right if side == "right" else bisect.bisect_left)(t.x, x) - 1
+        k = min(max(k, 0), len(t.x) - 2)
+        return float(self.scale * ((t.y[k + 1] - t.y[k]) / (t.x[k + 1] - t.x[k])))
 
 
 @dataclass(frozen=True, slots=True)

@@ -62,6 +62,7 @@ from .params import DrivetrainParams
 __all__ = [
     "Drivetrain",
     "INPUTS",
+    "clutch_friction",
     "full_chain",
     "input_ranges",
     "reduced_chain",
@@ -121,12 +122,24 @@ def _engine(p: DrivetrainParams) -> tuple[Body, LaggedSource]:
     return body, src
 
 
-def _clutch(p: DrivetrainParams) -> Friction:
+def clutch_friction(p: DrivetrainParams) -> Friction:
+    """The clutch's friction element: capacity k12(x_c) = ``clutch.k12_max * clutch.pedal_map(x_c)``
+    [N m] of the ``pedal`` input x_c [m] (paper, eq. (1); k13(x_c) in eq. (5), Fig. 12), times
+    ``mu_table(|slip|)``. The element's table holds the products ``k12_max * shape`` (N m at the
+    knots; its ``scale`` is 1); :meth:`Friction.capacity` evaluates it and
+    :meth:`Friction.capacity_slope` gives k12'(x_c) [N m/m]."""
+    if not isinstance(p, DrivetrainParams):
+        raise TypeError(f"params = {p!r}: must be a DrivetrainParams (e.g. default_params())")
     c = p.clutch
+    k12 = PwlTable(
+        tuple(float(v) for v in c.pedal_map.x),
+        tuple(c.k12_max * float(v) for v in c.pedal_map.y),
+        "pedal_map",
+    )
     return Friction(
         scale=1.0,
         capacity_input="pedal",
-        capacity_table=_table(c.pedal_map, "pedal_map"),
+        capacity_table=k12,
         static_ratio=c.static_ratio,
         mu_table=_table(c.mu_table, "mu_table") if len(c.mu_table.x) > 1 else None,
         mode_names=("stuck", "slip+", "slip-", "open"),
@@ -199,7 +212,7 @@ def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Cha
         _vehicle(p, slope),
     )
     couplings = (
-        Coupling("clutch", friction=_clutch(p)),
+        Coupling("clutch", friction=clutch_friction(p)),
         Coupling(
             "damper",
             spring=Spring(spring_x, spring_y, 0.0, "phi_e"),
@@ -294,7 +307,7 @@ def reduced_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> 
         _vehicle(p, slope),
     )
     couplings = (
-        Coupling("clutch", friction=_clutch(p)),
+        Coupling("clutch", friction=clutch_friction(p)),
         Coupling(
             "backlash",
             ratio=fig.tau_t / dl.R_p,
@@ -343,6 +356,17 @@ class Drivetrain:
 
     def __delattr__(self, key: str) -> None:
         raise AttributeError(f"Drivetrain is immutable; cannot delete {key!r}")
+
+    def clutch_capacity(self, x_c: float) -> float:
+        """The clutch's transmissible torque k12(x_c) [N m] at pedal position ``x_c`` [m], zero
+        slip (paper, eq. (1); k13(x_c) of eq. (5), Fig. 12): ``k12_max * pedal_map(x_c)``, read
+        from the model's clutch element (:meth:`Friction.capacity`)."""
+        return self.model.friction("clutch").capacity(float(x_c))
+
+    def clutch_capacity_slope(self, x_c: float, side: str = "right") -> float:
+        """dk12/dx_c [N m/m] at ``x_c`` [m] (negative: opening lowers the capacity), at a knot of
+        the pedal map the piece on ``side`` (:meth:`Friction.capacity_slope`)."""
+        return self.model.friction("clutch").capacity_slope(float(x_c), side)
 
     @property
     def tau_t(self) -> float:

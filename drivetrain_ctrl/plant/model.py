@@ -372,6 +372,32 @@ class Model:
             f"no friction element {name!r}; elements: {[f.name for f in self.frictions]}"
         )
 
+    def friction(self, element: int | str) -> Friction:
+        """The chain's :class:`Friction` element at index ``element`` (as in :attr:`frictions`)
+        or of that name."""
+        f = self.friction_index(element) if isinstance(element, str) else int(element)
+        fi = self.frictions[f]
+        if fi.kind == "coupling":
+            fr = self.chain.couplings[fi.index].friction
+        else:
+            fr = self.chain.bodies[fi.index].ground_friction
+        assert fr is not None
+        return fr
+
+    def capacity(self, element: int | str, u: F64, mode: Mode | None = None) -> float:
+        """Kinetic capacity at zero slip [N m or N] of friction ``element`` (index or name) at
+        inputs ``u``, the value the kernels use: :meth:`Friction.capacity` of its capacity input,
+        in the table region held by ``mode`` (None: the region of the input's value). For the
+        clutch, k12(x_c) (paper, eq. (1); k13(x_c), eq. (5)). Over samples:
+        ``model.friction(element).capacity(values of its input)``."""
+        f = self.friction_index(element) if isinstance(element, str) else int(element)
+        fr = self.friction(f)
+        if fr.capacity_input is None:
+            return fr.capacity(0.0)
+        v = float(u[self.input_names.index(fr.capacity_input)])
+        kt = int(self.data.f_table[f])
+        return fr.capacity(v, None if mode is None or kt < 0 else mode.reg[kt])
+
     def inputs(self, **values: float) -> F64:
         """Input vector from keyword values; every input must be given (a finite number), unknown
         names rejected. (The simulator checks the physical ranges, :attr:`input_ranges`.)"""

@@ -34,6 +34,15 @@ those whose default is the paper's own choice:
 * ``engine.full_load_curve`` may be omitted when ``engine.torque_model = "linear"`` (the paper's
   ``C_G = K theta``); it is required when ``torque_model = "map"``.
 
+The clutch capacity (the paper's k12(x_c), eq. (1), and k13(x_c), eq. (5) and Fig. 12) is
+``k12(x_c) = clutch.k12_max * pedal_map(x_c)`` [N m]: ``k12_max`` is the fully engaged capacity and
+``pedal_map`` its shape, k12/k12_max [-] in [0, 1] versus the release position x_c [m], 1 at its
+first knot (fully engaged), non-increasing. A ``pedal_map`` written in N m (any value above 1, the
+older form of the file) is read as that capacity: its largest value must equal ``k12_max`` (to a
+relative 1e-9, else :class:`ParameterError`) and it is stored divided by ``k12_max``, so the
+capacity is the file's values again (exactly when they are ``k12_max`` times binary fractions, as
+in the built-in set; else to one rounding). :func:`save_params` writes the shape.
+
 Unknown or misspelt keys are errors (with a "did you mean" suggestion). The one exception is a
 ``[law6]`` section (with ``[provenance]`` entries ``"law6.*"``) of older files: law (6)'s gains are
 controller settings (``k_r``, ``x_r0`` of a controller file, :mod:`drivetrain_ctrl.control.laws`),
@@ -314,7 +323,7 @@ class _TableSpec(NamedTuple):
 
 _PLAIN_TABLE = _TableSpec("x", "-", "y", "-")
 _FULL_LOAD_SPEC = _TableSpec("omega1", "rad/s", "C_max", "N m")
-_PEDAL_SPEC = _TableSpec("x_c", "m", "k12", "N m")
+_PEDAL_SPEC = _TableSpec("x_c", "m", "k12/k12_max", "-")
 _MU_SPEC = _TableSpec("slip", "rad/s", "mu_ratio", "-", "clamp", "even")
 _SPRING_SPEC = _TableSpec("theta_d", "rad", "phi_e", "N m", "linear", "odd")
 
@@ -515,11 +524,22 @@ class EngineParams(_Section):
 
 
 _FLAT_MU = Table((0.0,), (1.0,), *_MU_SPEC)
+#: relative tolerance of ``max(pedal_map) = 1`` (shape) or ``= k12_max`` (a map in N m)
+_PEDAL_MAP_RTOL = 1e-9
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ClutchParams(_Section):
-    """Dry clutch: disc inertia, capacity ``k12(x_c)`` and slip dependence of the friction."""
+    """Dry clutch: disc inertia, capacity ``k12(x_c)`` and slip dependence of the friction.
+
+    Capacity (the paper's k12(x_c), eq. (1); k13(x_c) of the reduced model, eq. (5), Fig. 12):
+    ``k12(x_c) = k12_max * pedal_map(x_c)`` [N m] at zero slip, times ``mu_table(|slip|)`` while
+    slipping. ``pedal_map`` is the shape k12/k12_max [-]: 1 at its first knot, non-increasing in
+    the release position x_c [m], within [0, 1]. A map given in N m (any value > 1, the older
+    form) is divided by ``k12_max``; its largest value must equal ``k12_max`` (relative 1e-9).
+    The drivetrain turns the product into the clutch's chain element
+    (:func:`~drivetrain_ctrl.plant.drivetrain.clutch_friction`), which evaluates it.
+    """
 
     _section: ClassVar[str] = "clutch"
 
@@ -530,15 +550,16 @@ class ClutchParams(_Section):
     k12_max: float = _param(
         "N m",
         "primary",
-        "maximum (fully engaged) clutch torque capacity",
+        "fully engaged clutch torque capacity: the scale of k12(x_c) = k12_max * pedal_map(x_c)",
         min=0.0,
         min_inclusive=False,
     )
     pedal_map: Table = _param(
-        "N m",
+        "-",
         "primary",
-        "clutch capacity k12 [N m] versus actuator/pedal position x_c [m]; non-increasing "
-        "(larger x_c = clutch more open); clamped outside the knots",
+        "shape of the clutch capacity, k12/k12_max [-] in [0, 1], versus actuator/pedal position "
+        "x_c [m]; 1 at the first knot, non-increasing (larger x_c = clutch more open); clamped "
+        "outside the knots. A map in N m (values > 1) is read and divided by k12_max",
         kind="table",
         table=_PEDAL_SPEC,
     )
@@ -555,23 +576,37 @@ class ClutchParams(_Section):
 
     def _check(self) -> None:
         pm = self.pedal_map
+        top = max(pm.y)
+        in_nm = top > 1.0  # the older form: k12 [N m] itself
+        what = "k12" if in_nm else "k12/k12_max"
         for xi, yi in zip(pm.x, pm.y, strict=True):
             if yi < 0.0:
                 raise ParameterError(
-                    f"clutch.pedal_map: k12 must be >= 0, but k12({_fmt(xi)})={_fmt(yi)}"
-                )
-            if yi > self.k12_max:
-                raise ParameterError(
-                    f"clutch.pedal_map: k12 must be <= clutch.k12_max = {_fmt(self.k12_max)}, "
-                    f"but k12({_fmt(xi)})={_fmt(yi)}"
+                    f"clutch.pedal_map: {what} must be >= 0, but {what}({_fmt(xi)})={_fmt(yi)}"
                 )
         for i in range(1, len(pm.x)):
             if pm.y[i] > pm.y[i - 1]:
                 raise ParameterError(
-                    f"clutch.pedal_map: k12 must be non-increasing in x_c, but "
-                    f"k12({_fmt(pm.x[i - 1])})={_fmt(pm.y[i - 1])} < "
-                    f"k12({_fmt(pm.x[i])})={_fmt(pm.y[i])}"
+                    f"clutch.pedal_map: {what} must be non-increasing in x_c, but "
+                    f"{what}({_fmt(pm.x[i - 1])})={_fmt(pm.y[i - 1])} < "
+                    f"{what}({_fmt(pm.x[i])})={_fmt(pm.y[i])}"
                 )
+        if in_nm:
+            if abs(top - self.k12_max) > _PEDAL_MAP_RTOL * self.k12_max:
+                raise ParameterError(
+                    f"clutch.pedal_map: a map in N m (values above 1) must reach "
+                    f"clutch.k12_max = {_fmt(self.k12_max)} N m at full engagement, but its "
+                    f"largest value is k12({_fmt(pm.x[0])})={_fmt(top)}; give the shape "
+                    "k12/k12_max in [0, 1] or make the two agree"
+                )
+            shape = tuple(yi / self.k12_max for yi in pm.y)
+            object.__setattr__(self, "pedal_map", Table(pm.x, shape, *_PEDAL_SPEC))
+        elif abs(top - 1.0) > _PEDAL_MAP_RTOL:
+            raise ParameterError(
+                f"clutch.pedal_map: the shape k12/k12_max must be 1 at full engagement (its "
+                f"first knot), but its largest value is k12/k12_max({_fmt(pm.x[0])})="
+                f"{_fmt(top)}; the capacity scale is clutch.k12_max"
+            )
         mu = self.mu_table
         if mu.x[0] != 0.0:
             raise ParameterError(
@@ -932,7 +967,8 @@ class DrivetrainParams:
     def replace(self, **changes: Any) -> DrivetrainParams:
         """A new, validated set with fields replaced by dotted path.
 
-        Example: ``p.replace(**{"clutch.k12_max": 300.0, "name": "strong clutch"})``. Keys are
+        Example: ``p.replace(**{"clutch.k12_max": 300.0, "name": "strong clutch"})`` (the
+        clutch capacity ``k12_max * pedal_map(x_c)`` scaled by 1.2 at every x_c). Keys are
         dotted field paths, top-level field names (``name``, ``description``, ``provenance``) or
         whole sections. Tables may be given as :class:`Table` or ``{"x": [...], "y": [...]}``.
         """

@@ -122,18 +122,13 @@ def _mark_lockup(axes: list[Axes], t_lock: float | None) -> None:
 
 def _clutch_capacity(model: Model, u: F64) -> F64 | None:
     """Kinetic clutch capacity at zero slip [N m] at the samples (None if no such element)."""
-    for cp in model.chain.couplings:
-        fr = cp.friction
-        if fr is None or fr.name != "clutch":
-            continue
-        if fr.capacity_input is None:
-            return np.full(u.shape[0], fr.scale)
-        ui = model.input_names.index(fr.capacity_input)
-        base = u[:, ui]
-        if fr.capacity_table is not None:
-            base = np.interp(base, fr.capacity_table.x, fr.capacity_table.y)
-        return np.asarray(fr.scale * base, dtype=float)
-    return None
+    try:
+        fr = model.friction("clutch")
+    except KeyError:
+        return None
+    if fr.capacity_input is None:
+        return np.full(u.shape[0], fr.capacity(0.0))
+    return fr.capacity(np.asarray(u[:, model.input_names.index(fr.capacity_input)], dtype=float))
 
 
 def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Figure:

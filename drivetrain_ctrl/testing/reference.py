@@ -177,8 +177,9 @@ def _full_reference(
     lag_dot = (throttle - lag) / eng.tau_p
 
     # ---- coupling torques (upstream frame unless said otherwise) -------------------------------
-    # clutch, engine -> disc: k12(x_c) mu(|w1 - w2|) sgn
-    k12 = _interp_clamped(clu.pedal_map.x, clu.pedal_map.y, pedal)
+    # clutch, engine -> disc: k12(x_c) mu(|w1 - w2|) sgn, k12 = k12_max * shape(x_c) [N m]
+    k12_knots = tuple(clu.k12_max * s for s in clu.pedal_map.y)
+    k12 = _interp_clamped(clu.pedal_map.x, k12_knots, pedal)
     slip12 = w1 - w2
     mu = _interp_clamped(clu.mu_table.x, clu.mu_table.y, abs(slip12))
     T_clutch = _kinetic(m_clutch, k12 * mu)

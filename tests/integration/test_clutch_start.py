@@ -328,8 +328,9 @@ def test_builtin_controllers_are_stable_in_slip() -> None:
             assert stable, spec.name
     # closed form at s = 0: k_r |k13'| / b1, k13' the pedal-map chord at x_r0 = 0.07 m
     pm = P.clutch.pedal_map
+    k12 = [P.clutch.k12_max * y for y in pm.y]  # capacity [N m] at the knots
     k = list(pm.x).index(0.07)
-    k13p = abs((pm.y[k + 1] - pm.y[k]) / (pm.x[k + 1] - pm.x[k]))
+    k13p = abs((k12[k + 1] - k12[k]) / (pm.x[k + 1] - pm.x[k]))
     L = slip_loop(builtin_controllers()["paper"], P)
     dc = float(np.real(control.evalfr(L, 0.0)))
     assert dc == pytest.approx(K_R * k13p / P.engine.b1, rel=1e-9)

@@ -193,7 +193,7 @@ def test_lockup_time() -> None:
 def test_clutch_torque_is_the_capacity_while_slipping() -> None:
     dt, res = engage()
     pm = dt.params.clutch.pedal_map
-    cap = np.interp(res.u[:, 1], pm.x, pm.y)  # flat mu table: capacity k12(x_c)
+    cap = dt.params.clutch.k12_max * np.interp(res.u[:, 1], pm.x, pm.y)  # flat mu: k12(x_c)
     Tc = res.coupling_torques()[:, 0]
     series = np.array(res.mode_series("clutch"))
     slip = series == "slip+"

@@ -48,10 +48,8 @@ def perturbed(f: dict[str, float]) -> DrivetrainParams:
     p = default_params()
     changes: dict[str, object] = {}
     for path, s in f.items():
-        if path == "k12":
-            pm = p.clutch.pedal_map
+        if path == "k12":  # the capacity k12_max * pedal_map(x_c), scaled at every x_c
             changes["clutch.k12_max"] = p.clutch.k12_max * s
-            changes["clutch.pedal_map"] = {"x": list(pm.x), "y": [y * s for y in pm.y]}
         else:
             changes[path] = p.get(path) * s
     return p.replace(**changes)

@@ -44,8 +44,9 @@ def _resp(sys, w):
 
 def _pedal_slope(params, x_c: float) -> float:
     pm = params.clutch.pedal_map
+    k12 = [params.clutch.k12_max * y for y in pm.y]  # capacity [N m] at the knots
     k = int(np.searchsorted(pm.x, x_c)) - 1
-    return (pm.y[k + 1] - pm.y[k]) / (pm.x[k + 1] - pm.x[k])
+    return (k12[k + 1] - k12[k]) / (pm.x[k + 1] - pm.x[k])
 
 
 # -- operating points -------------------------------------------------------------------------

@@ -84,14 +84,14 @@ def test_default_params_is_the_passenger_car(p: DrivetrainParams) -> None:
 
 
 def test_pedal_map_default(p: DrivetrainParams) -> None:
-    pm = p.clutch.pedal_map
-    assert pm(0.07) == 62.5
+    pm = p.clutch.pedal_map  # the shape k12/k12_max; the capacity is k12_max * pm(x_c)
+    assert p.clutch.k12_max * pm(0.07) == 62.5
     assert len(pm.x) == 17
     xs = np.linspace(0.0, 0.15, 61)
     expected = 250.0 * np.clip((0.11 - xs) / 0.08, 0.0, 1.0) ** 2
     # piecewise-linear interpolation of the quadratic: exact at knots, close in between
-    np.testing.assert_allclose(pm(xs), expected, atol=1.0)
-    assert pm(0.0) == 250.0 and pm(0.2) == 0.0  # clamped beyond the ends
+    np.testing.assert_allclose(p.clutch.k12_max * pm(xs), expected, atol=1.0)
+    assert pm(0.0) == 1.0 and pm(0.2) == 0.0  # clamped beyond the ends
 
 
 def test_derived_ratios_and_backlash(p: DrivetrainParams) -> None:
@@ -151,7 +151,7 @@ def test_table_arrays_and_shapes(p: DrivetrainParams) -> None:
     xa[0] = 99.0  # a copy: the table is unchanged
     assert pm.x[0] == 0.03
     out = pm(np.full((2, 3), 0.07))
-    assert out.shape == (2, 3) and np.all(out == 62.5)
+    assert out.shape == (2, 3) and np.all(out == 0.25)
     assert isinstance(pm(0.07), float)
 
 
@@ -206,6 +206,12 @@ def _pedal_increasing(d: dict[str, Any]) -> None:
     d["clutch"]["pedal_map"] = {"x": [0.03, 0.05, 0.06, 0.11], "y": [250.0, 10.0, 20.0, 0.0]}
 
 
+def _pedal_in_nm_above_k12_max(d: dict[str, Any]) -> None:
+    """The older form, k12 [N m] at the knots, reaching 250 N m with k12_max = 200 N m."""
+    d["clutch"]["pedal_map"]["y"] = [250.0 * y for y in d["clutch"]["pedal_map"]["y"]]
+    d["clutch"]["k12_max"] = 200.0
+
+
 def _unknown_section(d: dict[str, Any]) -> None:
     d["enigne"] = {"J1": 0.2}
 
@@ -234,7 +240,10 @@ BAD_FILES = {
         _pedal_increasing,
         ["clutch.pedal_map", "non-increasing", "k12(0.05)=10 < k12(0.06)=20"],
     ),
-    "pedal map above k12_max": (_set("clutch", "k12_max", 200.0), ["clutch.pedal_map", "250"]),
+    "pedal map in N m above k12_max": (
+        _pedal_in_nm_above_k12_max,
+        ["clutch.pedal_map", "clutch.k12_max = 200", "250"],
+    ),
     "pedal map unknown column": (_table_key, ["clutch.pedal_map.z", "unknown key"]),
     "spring not starting at 0": (
         _set("damper", "spring", {"x": [0.01, 0.1], "y": [0.0, 100.0]}),

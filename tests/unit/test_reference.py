@@ -189,7 +189,7 @@ def _static_capacity(p: DrivetrainParams, slope: float, u: np.ndarray, name: str
     """Static capacity of a friction element in the units of its stuck torque."""
     v = p.vehicle
     return {
-        "clutch": p.clutch.pedal_map(u[1]) * p.clutch.static_ratio,
+        "clutch": p.clutch.k12_max * p.clutch.pedal_map(u[1]) * p.clutch.static_ratio,
         "damper_friction": p.damper.k23 * p.damper.static_ratio,
         "tyre": float(v.k_w(slope)) * p.driveline.R_p * v.tyre_static_ratio,
         "engine": p.engine.c1 * p.engine.static_ratio,
@@ -233,7 +233,7 @@ def _energy_balance(
             ("stuck", "slip+", "slip-", "open")[FRICTION_MODE_NAMES[name].index(names[name])]
         ]
 
-    k12 = c.pedal_map(u[1]) * c.mu_table(w1 - w2)
+    k12 = c.k12_max * c.pedal_map(u[1]) * c.mu_table(w1 - w2)
     k_v = vh.f_r * vh.M_v * GRAVITY * math.cos(slope)
     k_w = vh.mu_tyre * vh.drive_axle_load_fraction * vh.M_v * GRAVITY * math.cos(slope)
     diss = [
