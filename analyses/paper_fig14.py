@@ -11,9 +11,9 @@ and writes ``reports/paper_fig14/``:
 Checks (the issue's targets): lock-up at 2.5 +/- 0.3 s on both models and the two within 0.15 s of
 each other; engine speed never below 800 rpm after the start; tracking_rms_rpm at most 400 for
 law (6) and at most 120 for the PI variant; energy residual at most 1e-6. Law (6) runs with the
-paper's gains (parameter set's ``law6`` section), not tuned for these checks. The PI gains of the
+paper's gains (the built-in ``paper`` controller file), not tuned for these checks. The PI gains of the
 built-in ``pi`` controller were tuned for one of them: they were chosen on the reduced model for
-tracking_rms_rpm <= 120 on paper-start (see :mod:`drivetrain_ctrl.controllers`), so that PI check
+tracking_rms_rpm <= 120 on paper-start (see :mod:`drivetrain_ctrl.control.laws`), so that PI check
 is met by construction rather than an independent result. ``--quick`` runs law (6) only.
 """
 

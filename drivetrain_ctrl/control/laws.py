@@ -1,7 +1,7 @@
 """Clutch start controllers by name or from a TOML file: law (6) and its PI variant.
 
 A :class:`ControllerSpec` is data only (what the user chose); :meth:`ControllerSpec.build` turns it
-into a :class:`~drivetrain_ctrl.closedloop.Controller` for a drivetrain and a scenario's reference.
+into a :class:`~drivetrain_ctrl.control.blocks.Controller` for a drivetrain and a scenario's reference.
 The same :class:`Controller` serves the simulation (``simulate(..., controller=...)``) and the linear
 analysis (its ``lti``).
 
@@ -26,7 +26,7 @@ can differ slightly from the disc speed while the damper winds up. The sign swit
 
 At the clutch's lock event the output latches and moves without a jump from its current value to
 full engagement (the pedal map's engaged end) at ``engage_rate`` [m/s]; if the clutch slips again the
-controller re-arms, continuing from the current x_r (see :mod:`drivetrain_ctrl.closedloop`).
+controller re-arms, continuing from the current x_r (see :mod:`drivetrain_ctrl.control.blocks`).
 
 A controller file (TOML; unknown keys are errors naming the key)::
 
@@ -50,7 +50,6 @@ the controller is built for (checked by :meth:`ControllerSpec.build`).
 
 from __future__ import annotations
 
-import difflib
 import functools
 import warnings
 from dataclasses import asdict, dataclass, fields, replace
@@ -62,7 +61,13 @@ import numpy as np
 
 from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from ..core.signals import Signal
-from ..core.validate import finite_float, is_finite_real, positive_float, reject_unknown
+from ..core.validate import (
+    did_you_mean,
+    finite_float,
+    is_finite_real,
+    positive_float,
+    reject_unknown,
+)
 from ..plant.drivetrain import clutch_friction
 from .blocks import Actuator, Controller, LatchRamp, actuator_tf
 
@@ -140,8 +145,7 @@ class ControllerSpec:
             raise ControllerError(f"controller name = {self.name!r}: must be a non-empty string")
         w = f"controller {self.name!r}: "
         if self.law not in LAWS:
-            close = difflib.get_close_matches(str(self.law), LAWS, n=1)
-            hint = f"; did you mean {close[0]!r}?" if close else ""
+            hint = did_you_mean(str(self.law), LAWS)
             raise ControllerError(f"{w}law = {self.law!r}: known laws {LAWS}{hint}")
         lo, hi = GAIN_RANGE
         if self.k_r is not None:
@@ -437,7 +441,7 @@ def _from_spec(
     engine_state: str,
     driven_state: str,
 ) -> Controller:
-    """Build the :class:`~drivetrain_ctrl.controllers.ControllerSpec` of a shortcut; its errors
+    """Build the :class:`~drivetrain_ctrl.control.laws.ControllerSpec` of a shortcut; its errors
     name the shortcut's argument (``engage_rate``, ``dt``) beside the spec's field."""
 
     if engage_rate is not None:
@@ -502,7 +506,7 @@ def law6_loop_closed_form(
     """Closed form of law (6)'s loop with constant mu:
     ``L(s) = k_r |k13'(x_c)| mu A(s) / (J_1 s + b_1')`` (units: k_r [m s/rad], k13' [N m/m],
     J_1 [kg m^2], b_1' [N m s/rad]; L dimensionless). TypeError if ``actuator`` is not an
-    :class:`~drivetrain_ctrl.closedloop.Actuator`."""
+    :class:`~drivetrain_ctrl.control.blocks.Actuator`."""
     if not isinstance(actuator, Actuator):
         raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
     kr, j1 = positive_float("k_r", k_r), positive_float("J1", J1)

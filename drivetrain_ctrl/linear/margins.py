@@ -1,7 +1,7 @@
 """Loop analysis: stability margins, root loci on a parameter grid, Nyquist data.
 
 Results are frozen dataclasses with ``to_dict()`` (JSON-ready, floats rounded by
-:func:`drivetrain_ctrl.metrics.json_ready`) and ``plot()`` (drawn by :mod:`drivetrain_ctrl.plotting`).
+:func:`drivetrain_ctrl.core.serialize.json_ready`) and ``plot()`` (drawn by :mod:`drivetrain_ctrl.reporting.figures`).
 Undefined figures are None with a reason in ``reasons``.
 
 Margins of a loop ``L`` (negative feedback, ``S = 1/(1+L)``, ``T = L/(1+L)``):
@@ -185,7 +185,7 @@ class LoopMargins:
 
     def plot(self, L: Any = None, path: str | None = None) -> Any:
         """Bode diagram of ``L``, ``S`` and ``T`` (if ``L`` is given) beside the closed-loop poles;
-        a matplotlib Figure (:func:`drivetrain_ctrl.plotting.plot_loop`), saved to ``path``."""
+        a matplotlib Figure (:func:`drivetrain_ctrl.reporting.figures.plot_loop`), saved to ``path``."""
         from ..reporting.figures import plot_loop
 
         poles = [(p.real, p.imag) for p in self.closed_loop_poles]
@@ -363,7 +363,7 @@ class RootLocus:
     def plot(self, path: str | None = None) -> Any:
         """Poles in the complex plane, coloured by the parameter value, one marker per mode of the
         operating point (legend: the clutch's mode and the elements that differ); a matplotlib
-        Figure (:func:`drivetrain_ctrl.plotting.plot_root_locus`), saved to ``path`` if given."""
+        Figure (:func:`drivetrain_ctrl.reporting.figures.plot_root_locus`), saved to ``path`` if given."""
         from ..reporting.figures import plot_root_locus
 
         pts = [
@@ -427,7 +427,7 @@ def root_locus(
 
     * ``k_r`` [m s/rad]: the gain of a static (law 6) controller;
     * ``pedal_slope`` [-]: factor on the pedal-map slope around ``x_c`` (k13(x_c) kept; the map is
-      rebuilt and the point re-made, :func:`~drivetrain_ctrl.linear.rebuild_operating_point`);
+      rebuilt and the point re-made, :func:`~drivetrain_ctrl.linear.operating_point.rebuild_operating_point`);
     * ``J1`` [kg m^2]: engine inertia (parameters replaced, point re-made);
     * ``omega_a`` [rad/s]: actuator natural frequency;
     * ``mu_slope`` [s/rad]: clutch friction slope (the linearisation override).
@@ -502,7 +502,7 @@ class NyquistData:
 
     def plot(self, path: str | None = None) -> Any:
         """The curve (and its mirror image) with the critical point -1; a matplotlib Figure
-        (:func:`drivetrain_ctrl.plotting.plot_nyquist`), saved to ``path`` if given."""
+        (:func:`drivetrain_ctrl.reporting.figures.plot_nyquist`), saved to ``path`` if given."""
         from ..reporting.figures import plot_nyquist
 
         return plot_nyquist(

@@ -2,7 +2,7 @@
 
 The plant is a switching system; a linear model only exists *inside one mode*. Everything here
 therefore works on an :class:`OperatingPoint` = (state, inputs, mode) and uses the model's
-analytic Jacobian of that mode (:meth:`~drivetrain_ctrl.model.Model.jacobian`); nothing is
+analytic Jacobian of that mode (:meth:`~drivetrain_ctrl.plant.model.Model.jacobian`); nothing is
 finite-differenced across a switch.
 
 Operating points
@@ -145,7 +145,7 @@ class Certificate:
     notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form (floats rounded by :func:`drivetrain_ctrl.metrics.json_ready`)."""
+        """JSON-ready form (floats rounded by :func:`drivetrain_ctrl.core.serialize.json_ready`)."""
         return json_ready(
             {
                 "kind": self.kind,
@@ -658,7 +658,7 @@ def locked_trim(
 
 def rebuild_operating_point(op: OperatingPoint, params: Any) -> OperatingPoint:
     """The same operating point (same recipe: speeds, pedal, throttle or trim conditions) for
-    another parameter set ``params`` (a :class:`~drivetrain_ctrl.params.DrivetrainParams`, else
+    another parameter set ``params`` (a :class:`~drivetrain_ctrl.plant.params.DrivetrainParams`, else
     TypeError). Raises ValueError for a point taken from a trajectory."""
     if not isinstance(params, DrivetrainParams):
         raise TypeError(f"params: a DrivetrainParams is needed, got {type(params).__name__}")

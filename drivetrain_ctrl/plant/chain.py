@@ -14,9 +14,9 @@ and a friction element. Each body may also have viscous, quadratic (aerodynamic)
 friction to ground, a constant load (e.g. gravity on a slope), an external torque input, and a
 first-order lagged source (the engine).
 
-These are pure data (frozen dataclasses). :func:`drivetrain_ctrl.model.Model` compiles a
+These are pure data (frozen dataclasses). :func:`drivetrain_ctrl.plant.model.Model` compiles a
 :class:`Chain` into arrays for the compiled kernels and offers the mode, guard, energy and
-linearisation API. The drivetrain itself (:mod:`drivetrain_ctrl.drivetrain`) is built from these
+linearisation API. The drivetrain itself (:mod:`drivetrain_ctrl.plant.drivetrain`) is built from these
 blocks.
 """
 

@@ -1,6 +1,6 @@
 """A compiled chain model: modes, dynamics, guards, stuck torques, energy and POG form.
 
-:class:`Model` is immutable: it holds the :class:`~drivetrain_ctrl.chain.Chain` it was made from
+:class:`Model` is immutable: it holds the :class:`~drivetrain_ctrl.plant.chain.Chain` it was made from
 and its array form (:class:`~drivetrain_ctrl.kernels.ChainData`). The state it runs on is passed
 in (a state vector ``x``, an input vector ``u`` and a :class:`Mode`); the simulator is separate.
 

@@ -53,7 +53,6 @@ its values (a plant parameter set cannot set a controller's gains).
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import functools
 import math
 import warnings
@@ -68,7 +67,7 @@ from numpy.typing import NDArray
 
 from ..core.registry import load_toml_as
 from ..core.units import GRAVITY
-from ..core.validate import is_real
+from ..core.validate import did_you_mean, is_real
 
 __all__ = [
     "FRAMES",
@@ -139,15 +138,6 @@ def _fmt(value: object) -> str:
             return repr(value)
     text = repr(value)
     return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _suggest(key: str, candidates: Iterable[str]) -> str:
-    """Return "; did you mean 'x'?" for a close match of ``key`` among ``candidates``, else ""."""
-    by_lower: dict[str, str] = {}
-    for c in candidates:
-        by_lower.setdefault(c.lower(), c)
-    match = difflib.get_close_matches(str(key).lower(), list(by_lower), n=1, cutoff=0.6)
-    return f"; did you mean '{by_lower[match[0]]}'?" if match else ""
 
 
 def _to_float(path: str, value: object) -> float:
@@ -346,7 +336,7 @@ def _coerce_table(path: str, value: object, spec: _TableSpec) -> Table:
             if key not in ("x", "y"):
                 raise ParameterError(
                     f"{path}.{key}: unknown key (a table has 'x' = {spec.x_name} [{spec.x_unit}] "
-                    f"and 'y' = {spec.y_name} [{spec.y_unit}]){_suggest(str(key), ('x', 'y'))}"
+                    f"and 'y' = {spec.y_name} [{spec.y_unit}]){did_you_mean(str(key), ('x', 'y'))}"
                 )
         for key in ("x", "y"):
             if key not in value:
@@ -433,7 +423,7 @@ def _coerce_field(path: str, value: object, md: Mapping[str, Any]) -> object:
         if value not in md["choices"] or not isinstance(value, str):
             raise ParameterError(
                 f"{path} = {_fmt(value)}: must be one of {', '.join(map(repr, md['choices']))}"
-                f"{_suggest(str(value), md['choices'])}"
+                f"{did_you_mean(str(value), md['choices'])}"
             )
         return value
     if kind == "table":
@@ -884,7 +874,9 @@ def field_info(path: str) -> dict[str, Any]:
     try:
         md = _FIELD_META[path]
     except KeyError:
-        raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}") from None
+        raise ParameterError(
+            f"{path}: unknown parameter{did_you_mean(path, _FIELD_META)}"
+        ) from None
     info = {k: v for k, v in md.items() if k != "table"}
     if md["table"] is not None:
         info.update(md["table"]._asdict())
@@ -908,7 +900,7 @@ def _canonical_provenance(value: object) -> tuple[tuple[str, str], ...]:
     for key, text in items:
         if not isinstance(key, str) or key not in _FIELD_META:
             raise ParameterError(
-                f"provenance.{key}: {key!r} names no parameter{_suggest(str(key), _FIELD_META)}"
+                f"provenance.{key}: {key!r} names no parameter{did_you_mean(str(key), _FIELD_META)}"
             )
         if not isinstance(text, str):
             raise ParameterError(f"provenance.{key} = {_fmt(text)}: must be a str")
@@ -960,7 +952,7 @@ class DrivetrainParams:
     def get(self, path: str) -> Any:
         """The value of the field at dotted ``path`` (e.g. ``"clutch.k12_max"``; SI units)."""
         if path not in _FIELD_META:
-            raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}")
+            raise ParameterError(f"{path}: unknown parameter{did_you_mean(path, _FIELD_META)}")
         section, _, name = path.partition(".")
         return getattr(getattr(self, section), name)
 
@@ -980,11 +972,11 @@ class DrivetrainParams:
             if not dot:
                 if path not in top_names:
                     raise ParameterError(
-                        f"{path}: unknown parameter{_suggest(path, [*top_names, *_FIELD_META])}"
+                        f"{path}: unknown parameter{did_you_mean(path, [*top_names, *_FIELD_META])}"
                     )
                 top[path] = value
             elif path not in _FIELD_META:
-                raise ParameterError(f"{path}: unknown parameter{_suggest(path, _FIELD_META)}")
+                raise ParameterError(f"{path}: unknown parameter{did_you_mean(path, _FIELD_META)}")
             else:
                 per_section.setdefault(section, {})[name] = value
         for section, section_changes in per_section.items():
@@ -1046,7 +1038,7 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
     allowed = ["meta", *_SECTIONS, "provenance"]
     for key in data:
         if key not in allowed:
-            raise ParameterError(f"{key}: unknown section{_suggest(str(key), allowed)}")
+            raise ParameterError(f"{key}: unknown section{did_you_mean(str(key), allowed)}")
     for key in ("meta", *_SECTIONS):
         if key not in data:
             raise ParameterError(f"{key}: missing section [{key}]")
@@ -1054,7 +1046,7 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
     for key in meta:
         if key not in ("name", "description"):
             raise ParameterError(
-                f"meta.{key}: unknown key{_suggest(str(key), ('name', 'description'))}"
+                f"meta.{key}: unknown key{did_you_mean(str(key), ('name', 'description'))}"
             )
     for key in ("name", "description"):
         if key not in meta:
@@ -1065,7 +1057,9 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
         names = [f.name for f in fields(cast(Any, cls))]
         for name in raw:
             if name not in names:
-                raise ParameterError(f"{key}.{name}: unknown parameter{_suggest(str(name), names)}")
+                raise ParameterError(
+                    f"{key}.{name}: unknown parameter{did_you_mean(str(name), names)}"
+                )
         kwargs: dict[str, Any] = {}
         for f in fields(cast(Any, cls)):
             if f.name in raw:
@@ -1130,7 +1124,7 @@ def _resolve_source(source: str | Path) -> Path:
     if looks_like_path or Path(source).is_file():
         return Path(source)
     raise ValueError(
-        f"unknown parameter set {source!r}{_suggest(source, sets)} "
+        f"unknown parameter set {source!r}{did_you_mean(source, sets)} "
         f"(available: {', '.join(sets) or 'none'}, 'default' = {DEFAULT_SET!r}; or give a path "
         "to a .toml file)"
     )
@@ -1157,7 +1151,7 @@ def save_params(params: DrivetrainParams, path: str | Path) -> Path:
     out.parent.mkdir(parents=True, exist_ok=True)
     header = (
         f"# drivetrain_ctrl parameter set {params.name!r}, written by save_params.\n"
-        "# SI units; units and frames of each field: drivetrain_ctrl.params.field_info().\n\n"
+        "# SI units; units and frames of each field: drivetrain_ctrl.plant.params.field_info().\n\n"
     )
     out.write_text(header + tomli_w.dumps(params_to_dict(params)), encoding="utf-8")
     return out

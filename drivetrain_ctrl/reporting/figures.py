@@ -4,7 +4,7 @@
 a strip chart of the modes of every friction element and backlash, event markers);
 :func:`plot_energy` the energy balance; :func:`plot_engagement` clutch starts in the layout of the
 paper's Fig. 14; :func:`plot_loop`, :func:`plot_nyquist` and :func:`plot_root_locus` the loop
-analysis (:mod:`drivetrain_ctrl.analysis`); :func:`report_figures` and :func:`write_text_pdf` the
+analysis (:mod:`drivetrain_ctrl.linear.margins`); :func:`report_figures` and :func:`write_text_pdf` the
 controller report. All build a
 :class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend, no global figure registry
 and nothing to close) and save it as PNG if a path is given. In Jupyter the returned figure
@@ -352,7 +352,7 @@ def plot_engagement(
     Rows: engine speed omega_1, primary-shaft speed omega_3 and the reference omega_r [rpm];
     controller command x_r and actuator position x_c [mm]; clutch torque tau_13 and engine torque
     C_1 [N m]; vehicle speed [km/h]. ``runs`` are ``(label, result)`` pairs of closed-loop runs;
-    ``reference`` is omega_r(t) [rad/s] (a :class:`~drivetrain_ctrl.signals.Signal`);
+    ``reference`` is omega_r(t) [rad/s] (a :class:`~drivetrain_ctrl.core.signals.Signal`);
     ``lockups`` the lock-up time [s] of each run (a dashed line). Saved to ``path`` if given.
     """
     from matplotlib.figure import Figure
@@ -569,7 +569,7 @@ def plot_nyquist(
 
 
 def report_figures(data: dict[str, Any]) -> dict[str, Figure]:
-    """The figures of a controller report (:func:`drivetrain_ctrl.report.build_report`), drawn
+    """The figures of a controller report (:func:`drivetrain_ctrl.reporting.controller_report.build_report`), drawn
     from its ``data`` only: ``{name: Figure}`` for bode, root_locus, nyquist, step, engagement,
     lock."""
     from matplotlib.figure import Figure

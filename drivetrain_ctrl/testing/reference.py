@@ -1,9 +1,9 @@
 """Flat reference model of the full drivetrain: the ODE of each mode written out by hand.
 
-This module is an independent check of the chain machinery (:mod:`drivetrain_ctrl.chain`,
-:mod:`drivetrain_ctrl.kernels`, :mod:`drivetrain_ctrl.model`): it uses none of it, only the
+This module is an independent check of the chain machinery (:mod:`drivetrain_ctrl.plant.chain`,
+:mod:`drivetrain_ctrl.kernels`, :mod:`drivetrain_ctrl.plant.model`): it uses none of it, only the
 parameters. Every body equation, coupling torque and constraint row of the full model (see
-:mod:`drivetrain_ctrl.drivetrain`) is written plainly in :func:`_full_reference`; it is slow and
+:mod:`drivetrain_ctrl.plant.drivetrain`) is written plainly in :func:`_full_reference`; it is slow and
 meant for tests, not for simulation.
 
 Bodies (index, frame): 0 engine (engine), 1 disc (primary), 2 primary (primary), 3 secondary
