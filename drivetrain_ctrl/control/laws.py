@@ -69,6 +69,7 @@ from ..core.validate import (
     reject_unknown,
 )
 from ..plant.drivetrain import clutch_friction
+from ..plant.params import DrivetrainParams
 from .blocks import Actuator, Controller, LatchRamp, actuator_tf
 
 __all__ = [
@@ -220,7 +221,7 @@ class ControllerSpec:
         # forward-Euler integrator: x[k+1] = x[k] + Ts e[k]
         return control.ss([[1.0]], [[ts]], [[self.ki]], [[self.kp]], ts)
 
-    def check_stability(self, params: Any) -> tuple[bool, list[complex]]:
+    def check_stability(self, params: DrivetrainParams) -> tuple[bool, list[complex]]:
         """Closed-loop poles of the slip-mode loop (:func:`slip_loop`) at x_c = x_r0; returns
         ``(stable, poles)`` and warns :class:`UnstableLoopWarning` if unstable. The simulation
         still runs: the warning only says what to expect."""
@@ -243,7 +244,7 @@ class ControllerSpec:
 
     def build(
         self,
-        params: Any,
+        params: DrivetrainParams,
         *,
         reference: Signal,
         start_time: float | None = None,
@@ -296,14 +297,14 @@ class ControllerSpec:
         )
 
 
-def _engaged_position(params: Any) -> float:
+def _engaged_position(params: DrivetrainParams) -> float:
     """x_c [m] of full engagement: the first knot of the clutch element's capacity table."""
     table = clutch_friction(params).capacity_table
     assert table is not None
     return float(table.x[0])
 
 
-def slip_loop(spec: ControllerSpec, params: Any) -> control.TransferFunction:
+def slip_loop(spec: ControllerSpec, params: DrivetrainParams) -> control.TransferFunction:
     """Loop gain of ``spec`` in slip with a constant friction coefficient, at x_c = x_r0.
 
     ``L = C(s) |k13'(x_r0)| A(s) / (J_1 s + b_1)``: controller LTI block ``C`` [m s/rad], clutch
@@ -403,7 +404,7 @@ def load_controller(source: str | Path | ControllerSpec) -> ControllerSpec:
 
 
 def law6_controller(
-    params: Any,
+    params: DrivetrainParams,
     *,
     reference: Signal,
     engine_state: str = "omega_engine",
@@ -432,7 +433,7 @@ def law6_controller(
 
 def _from_spec(
     fn: str,
-    params: Any,
+    params: DrivetrainParams,
     fields: dict[str, Any],
     *,
     reference: Signal,
@@ -464,7 +465,7 @@ def _from_spec(
 
 
 def pi_controller(
-    params: Any,
+    params: DrivetrainParams,
     *,
     reference: Signal,
     kp: float,

@@ -35,6 +35,7 @@ from ..control.blocks import Actuator, Controller, require_controller
 from ..core.serialize import json_ready
 from ..core.validate import is_finite_real
 from ..plant.drivetrain import clutch_friction
+from ..plant.params import DrivetrainParams
 from .clutch import _slip_mode_poles_of, clutch_loop
 from .linearisation import linearise, natural_frequency_damping, trim_tf
 from .operating_point import OperatingPoint, rebuild_operating_point, require_op
@@ -377,7 +378,7 @@ class RootLocus:
         return plot_root_locus(pts, parameter=self.parameter, unit=self.unit, path=path)
 
 
-def _scaled_pedal_map(params: Any, x_c: float, factor: float) -> Any:
+def _scaled_pedal_map(params: DrivetrainParams, x_c: float, factor: float) -> Any:
     """``params`` with the clutch capacity k12 [N m] at the knots moved about its value at
     ``x_c`` [m] by ``factor`` in slope, clipped to [0, k12_max]; its value at full engagement is
     the new capacity scale ``k12_max``, the rest the new shape."""

@@ -656,7 +656,7 @@ def locked_trim(
     return op
 
 
-def rebuild_operating_point(op: OperatingPoint, params: Any) -> OperatingPoint:
+def rebuild_operating_point(op: OperatingPoint, params: DrivetrainParams) -> OperatingPoint:
     """The same operating point (same recipe: speeds, pedal, throttle or trim conditions) for
     another parameter set ``params`` (a :class:`~drivetrain_ctrl.plant.params.DrivetrainParams`, else
     TypeError). Raises ValueError for a point taken from a trajectory."""

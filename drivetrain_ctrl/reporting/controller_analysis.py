@@ -116,7 +116,7 @@ N_FREQ: int = 300
 _RPM = RAD_S_TO_RPM  # rad/s -> rpm
 
 
-def _resolve_params(params: Any) -> tuple[DrivetrainParams, str]:
+def _resolve_params(params: object) -> tuple[DrivetrainParams, str]:
     if params is None:
         p = default_params()
         return p, p.name
@@ -356,7 +356,7 @@ def _nominal_step_run(sc: Scenario, dtr: Drivetrain, ctrl: Any, op: OperatingPoi
 def _step_comparison(
     sc: Scenario,
     dtr: Drivetrain,
-    params: Any,
+    params: DrivetrainParams,
     op: OperatingPoint,
     cl: ClutchLoop,
     d_rpm: float,
