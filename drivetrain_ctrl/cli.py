@@ -38,10 +38,11 @@ from pathlib import Path
 from typing import Any
 
 from .core.serialize import json_ready
+from .core.tables import PwlTable
+from .core.validate import real_number
 from .plant.params import (
     DEFAULT_SET,
     DrivetrainParams,
-    Table,
     available_parameter_sets,
     field_info,
     field_paths,
@@ -453,7 +454,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _value_text(v: Any) -> str:
     if v is None:
         return "-"
-    if isinstance(v, Table):
+    if isinstance(v, PwlTable):
         n = len(v.x)
         if n == 1:
             return f"constant {v.y[0]:.6g}"
@@ -488,7 +489,7 @@ def _cmd_params_show(args: argparse.Namespace) -> int:
             print(f"\n[{sec}]")
             section = sec
         frame = f"(frame: {info['frame']})" if info["frame"] != "-" else ""
-        if isinstance(value, Table):
+        if isinstance(value, PwlTable):
             what = (
                 f"table {info['y_name']} [{info['y_unit']}] vs {info['x_name']} [{info['x_unit']}]"
             )
@@ -529,13 +530,12 @@ def _cmd_scenarios_list(args: argparse.Namespace) -> int:
 
 
 def _positive_float(text: str) -> float:
+    """An option's value: a finite number > 0 (:func:`~drivetrain_ctrl.core.validate.real_number`
+    on the parsed text), else an argparse error naming the text."""
     try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
-    return v
+        return real_number("value", float(text), lo=0, lo_open=True)
+    except ValueError:  # not a number (float), or not finite and > 0 (real_number)
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0") from None
 
 
 def _out_dir(text: str) -> str:

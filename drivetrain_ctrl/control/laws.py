@@ -66,6 +66,7 @@ from ..core.validate import (
     finite_float,
     is_finite_real,
     positive_float,
+    real_number,
     reject_unknown,
 )
 from ..plant.drivetrain import clutch_friction
@@ -110,13 +111,9 @@ class UnstableLoopWarning(UserWarning):
 
 
 def _finite(where: str, name: str, v: Any, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    if not is_finite_real(v):
-        raise ControllerError(f"{where}{name} = {v!r}: must be a finite number")
-    ok = (v > lo if lo_open else v >= lo) and v <= hi
-    if not ok:
-        br = "(" if lo_open else "["
-        raise ControllerError(f"{where}{name} = {v!r}: out of range {br}{lo}, {hi}]")
-    return float(v)
+    """``v`` as a float within ``[lo, hi]`` (``(lo, hi]`` if ``lo_open``), else ControllerError
+    naming ``where + name`` and the value (:func:`~drivetrain_ctrl.core.validate.real_number`)."""
+    return real_number(f"{where}{name}", v, lo=lo, hi=hi, lo_open=lo_open, error=ControllerError)
 
 
 @dataclass(frozen=True, kw_only=True)

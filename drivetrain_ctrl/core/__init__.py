@@ -6,7 +6,7 @@ from __future__ import annotations
 from .registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from .serialize import json_ready, round_sig
 from .signals import Signal, constant, ramp, sine, step, table
-from .tables import PwlTable
+from .tables import PwlTable, TableError
 from .units import (
     GRAVITY,
     KMH_TO_M_S,
@@ -16,7 +16,7 @@ from .units import (
     rad_s_to_rpm,
     rpm_to_rad_s,
 )
-from .validate import is_finite_real, is_real, reject_unknown
+from .validate import ParameterError, is_finite_real, is_real, real_number, reject_unknown
 
 __all__ = [
     "GRAVITY",
@@ -27,6 +27,8 @@ __all__ = [
     "kmh_to_m_s",
     "m_s_to_kmh",
     "PwlTable",
+    "TableError",
+    "ParameterError",
     "json_ready",
     "round_sig",
     "builtin_files",
@@ -35,6 +37,7 @@ __all__ = [
     "read_toml",
     "is_real",
     "is_finite_real",
+    "real_number",
     "reject_unknown",
     "Signal",
     "constant",

@@ -31,6 +31,8 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from .validate import real_number
+
 __all__ = [
     "Signal",
     "SignalArrays",
@@ -44,12 +46,9 @@ __all__ = [
 
 
 def _check_finite(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"{name} must be a real number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {v!r}")
-    return v
+    """``value`` as a float (:func:`~drivetrain_ctrl.core.validate.real_number`): TypeError
+    unless a real number, ValueError unless finite."""
+    return real_number(name, value, type_error=TypeError, phrasing="got")
 
 
 @dataclass(frozen=True, slots=True)

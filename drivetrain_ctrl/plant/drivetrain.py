@@ -77,8 +77,10 @@ INPUTS: tuple[str, str, str] = ("throttle", "pedal", "brake")
 INPUT_UNITS: dict[str, str] = {"throttle": "-", "pedal": "m", "brake": "N m"}
 
 
-def _table(t: object, name: str) -> PwlTable:
-    return PwlTable(tuple(float(v) for v in t.x), tuple(float(v) for v in t.y), name)  # type: ignore[attr-defined]
+def _table(t: PwlTable, name: str) -> PwlTable:
+    """A parameter map's knots as a chain element's table ``name``: clamped, no symmetry (the
+    elements evaluate mu(slip) at |slip| themselves), no labels."""
+    return PwlTable(t.x, t.y, name)
 
 
 def _check_gear(p: DrivetrainParams, gear: int) -> None:
@@ -114,6 +116,7 @@ def _engine(p: DrivetrainParams) -> tuple[Body, LaggedSource]:
         else None,
     )
     if e.torque_model == "map":
+        assert e.full_load_curve is not None  # EngineParams requires it with torque_model "map"
         src = LaggedSource(
             "engine", "engine", "throttle", e.tau_p, 1.0, _table(e.full_load_curve, "C_max")
         )

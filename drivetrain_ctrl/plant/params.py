@@ -15,8 +15,9 @@ section carries metadata (see :func:`field_info`):
     Meaning and admissible range (``None`` = unbounded).
 
 Objects are frozen, slotted dataclasses validated on construction; an invalid value raises
-:class:`ParameterError` (a :class:`ValueError`) whose message names the dotted field path and the
-offending value, e.g. ``engine.J1 = -0.2: must be > 0 [kg m^2]``. Derive modified sets with
+:class:`~drivetrain_ctrl.core.validate.ParameterError` (a :class:`ValueError`, re-exported here)
+whose message names the dotted field path and the offending value, e.g. ``engine.J1 = -0.2: must
+be > 0 [kg m^2]``. Derive modified sets with
 :meth:`DrivetrainParams.replace` (dotted paths), which validates again.
 
 Parameter files (TOML) have a ``[meta]`` table (``name``, ``description``), one table per section
@@ -54,20 +55,20 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any, ClassVar, NamedTuple, TypeAlias, cast, overload
+from typing import Any, ClassVar, NamedTuple, TypeAlias, cast
 
 import numpy as np
 import tomli_w
 from numpy.typing import NDArray
 
 from ..core.registry import load_toml_as
+from ..core.tables import PwlTable
 from ..core.units import GRAVITY
-from ..core.validate import did_you_mean, is_real
+from ..core.validate import ParameterError, did_you_mean, real_number
 
 __all__ = [
     "FRAMES",
@@ -99,10 +100,6 @@ FRAMES: tuple[str, ...] = ("engine", "primary", "secondary", "wheel", "vehicle",
 PARAMETER_SETS_DIR: Path = Path(__file__).resolve().parent / "parameter_sets"
 
 FloatOrArray: TypeAlias = float | NDArray[np.float64]
-
-
-class ParameterError(ValueError):
-    """An invalid, missing or unknown parameter; the message names the dotted field path."""
 
 
 class ParameterSectionWarning(FutureWarning):
@@ -140,23 +137,29 @@ def _fmt(value: object) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
-def _to_float(path: str, value: object) -> float:
-    """Coerce a real number to a finite ``float``; reject bool, str, NaN and inf."""
-    if not is_real(value):
-        raise ParameterError(
-            f"{path} = {_fmt(value)}: must be a real number, not {type(value).__name__}"
-        )
-    try:
-        x = float(cast(float, value))
-    except OverflowError:
-        raise ParameterError(f"{path} = {_fmt(value)}: must be finite") from None
-    if not math.isfinite(x):
-        raise ParameterError(f"{path} = {_fmt(value)}: must be finite")
-    return x
+def _to_float(path: str, value: object, md: Mapping[str, Any] | None = None) -> float:
+    """A finite real number as a ``float`` (:func:`~drivetrain_ctrl.core.validate.real_number`),
+    within the field's bounds if ``md`` (its metadata) is given; ParameterError otherwise."""
+    if md is None:
+        return real_number(path, value, error=ParameterError, show=_fmt)
+    return real_number(
+        path,
+        value,
+        lo=md["min"],
+        hi=md["max"],
+        lo_open=not md["min_inclusive"],
+        hi_open=not md["max_inclusive"],
+        unit=md["unit"],
+        error=ParameterError,
+        show=_fmt,
+    )
 
 
-def _to_float_tuple(path: str, value: object) -> tuple[float, ...]:
-    """Coerce a 1-D sequence of real numbers to a tuple of finite floats."""
+def _to_float_tuple(
+    path: str, value: object, md: Mapping[str, Any] | None = None
+) -> tuple[float, ...]:
+    """A 1-D sequence of real numbers as a tuple of finite floats, each checked by
+    :func:`_to_float`."""
     if isinstance(value, np.ndarray):
         if value.ndim != 1:
             raise ParameterError(
@@ -165,144 +168,21 @@ def _to_float_tuple(path: str, value: object) -> tuple[float, ...]:
         value = value.tolist()
     if isinstance(value, str | bytes | Mapping) or not isinstance(value, Sequence):
         raise ParameterError(f"{path} = {_fmt(value)}: must be a sequence of numbers")
-    return tuple(_to_float(f"{path}[{i}]", v) for i, v in enumerate(value))
-
-
-def _bounds_text(md: Mapping[str, Any]) -> str:
-    parts = []
-    if md["min"] is not None:
-        parts.append(f"{'>=' if md['min_inclusive'] else '>'} {_fmt(md['min'])}")
-    if md["max"] is not None:
-        parts.append(f"{'<=' if md['max_inclusive'] else '<'} {_fmt(md['max'])}")
-    return " and ".join(parts)
-
-
-def _in_bounds(x: float, md: Mapping[str, Any]) -> bool:
-    lo, hi = md["min"], md["max"]
-    if lo is not None and not (x >= lo if md["min_inclusive"] else x > lo):
-        return False
-    return hi is None or (x <= hi if md["max_inclusive"] else x < hi)
-
-
-def _check_bounds(path: str, x: float, md: Mapping[str, Any]) -> None:
-    if not _in_bounds(x, md):
-        raise ParameterError(f"{path} = {_fmt(x)}: must be {_bounds_text(md)} [{md['unit']}]")
+    return tuple(_to_float(f"{path}[{i}]", v, md) for i, v in enumerate(value))
 
 
 # --------------------------------------------------------------------------------------------------
 # tables
 # --------------------------------------------------------------------------------------------------
 
-_EXTRAPOLATIONS = ("clamp", "linear")
-_SYMMETRIES = ("none", "odd", "even")
-
-
-def _validate_xy(
-    path: str, x: object, y: object, x_name: str = "x", y_name: str = "y"
-) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    xs = _to_float_tuple(f"{path}.x", x)
-    ys = _to_float_tuple(f"{path}.y", y)
-    if len(xs) == 0:
-        raise ParameterError(f"{path}: a table needs at least one point, got x = []")
-    if len(xs) != len(ys):
-        raise ParameterError(
-            f"{path}: x and y must have the same length, got {len(xs)} and {len(ys)}"
-        )
-    for i in range(1, len(xs)):
-        if not xs[i] > xs[i - 1]:
-            raise ParameterError(
-                f"{path}: {x_name} must be strictly increasing, but x[{i}]={_fmt(xs[i])} "
-                f"<= x[{i - 1}]={_fmt(xs[i - 1])}"
-            )
-    return xs, ys
-
-
-@dataclass(frozen=True, slots=True)
-class Table:
-    """A 1-D lookup table ``y = f(x)``, piecewise linear between the knots.
-
-    ``x`` must be strictly increasing and ``y`` of the same length (a single knot is allowed and
-    means a constant). Values are stored as tuples of floats; :meth:`x_array` / :meth:`y_array`
-    return NumPy copies.
-
-    Evaluation (:meth:`__call__`) follows :func:`numpy.interp` inside the knot range. Outside it:
-
-    * ``extrapolation="clamp"`` (default): the end values are held;
-    * ``extrapolation="linear"``: the end segments are continued with their slopes.
-
-    ``symmetry="odd"`` evaluates ``sign(v) * f(|v|)`` and ``symmetry="even"`` evaluates ``f(|v|)``,
-    so such tables need knots for ``x >= 0`` only.
-    """
-
-    x: tuple[float, ...]
-    y: tuple[float, ...]
-    x_name: str = "x"
-    x_unit: str = "-"
-    y_name: str = "y"
-    y_unit: str = "-"
-    extrapolation: str = "clamp"
-    symmetry: str = "none"
-
-    def __post_init__(self) -> None:
-        xs, ys = _validate_xy("Table", self.x, self.y, self.x_name, self.y_name)
-        object.__setattr__(self, "x", xs)
-        object.__setattr__(self, "y", ys)
-        if self.extrapolation not in _EXTRAPOLATIONS:
-            raise ParameterError(
-                f"Table.extrapolation = {self.extrapolation!r}: must be one of {_EXTRAPOLATIONS}"
-            )
-        if self.symmetry not in _SYMMETRIES:
-            raise ParameterError(
-                f"Table.symmetry = {self.symmetry!r}: must be one of {_SYMMETRIES}"
-            )
-        for name in ("x_name", "x_unit", "y_name", "y_unit"):
-            if not isinstance(getattr(self, name), str):
-                raise ParameterError(f"Table.{name} = {_fmt(getattr(self, name))}: must be a str")
-
-    def x_array(self) -> NDArray[np.float64]:
-        """The knot abscissae as a new NumPy array [``x_unit``]."""
-        return np.array(self.x, dtype=np.float64)
-
-    def y_array(self) -> NDArray[np.float64]:
-        """The knot ordinates as a new NumPy array [``y_unit``]."""
-        return np.array(self.y, dtype=np.float64)
-
-    @overload
-    def __call__(self, v: float) -> float: ...
-    @overload
-    def __call__(self, v: NDArray[Any] | Sequence[float]) -> NDArray[np.float64]: ...
-    def __call__(self, v: float | NDArray[Any] | Sequence[float]) -> FloatOrArray:
-        """Evaluate the table at ``v`` [``x_unit``]; returns ``y`` [``y_unit``].
-
-        A scalar argument gives a ``float``, an array-like gives an array of the same shape.
-        """
-        a = np.asarray(v, dtype=np.float64)
-        u = a if self.symmetry == "none" else np.abs(a)
-        xs, ys = self.x_array(), self.y_array()
-        out = np.interp(u, xs, ys)
-        if self.extrapolation == "linear" and len(xs) >= 2:
-            lo_slope = (ys[1] - ys[0]) / (xs[1] - xs[0])
-            hi_slope = (ys[-1] - ys[-2]) / (xs[-1] - xs[-2])
-            out = np.where(u < xs[0], ys[0] + lo_slope * (u - xs[0]), out)
-            out = np.where(u > xs[-1], ys[-1] + hi_slope * (u - xs[-1]), out)
-        if self.symmetry == "odd":
-            out = np.sign(a) * out
-        if out.ndim == 0:
-            return float(out)
-        return np.asarray(out, dtype=np.float64)
-
-    def _labels(self) -> _TableSpec:
-        return _TableSpec(
-            self.x_name,
-            self.x_unit,
-            self.y_name,
-            self.y_unit,
-            self.extrapolation,
-            self.symmetry,
-        )
+#: ``params.Table`` is the package's one table type, :class:`~drivetrain_ctrl.core.tables.PwlTable`
+#: (the older name, kept for files and scripts that import it).
+Table = PwlTable
 
 
 class _TableSpec(NamedTuple):
+    """Axis labels and options of a parameter table (keyword arguments of :class:`PwlTable`)."""
+
     x_name: str
     x_unit: str
     y_name: str
@@ -318,10 +198,15 @@ _MU_SPEC = _TableSpec("slip", "rad/s", "mu_ratio", "-", "clamp", "even")
 _SPRING_SPEC = _TableSpec("theta_d", "rad", "phi_e", "N m", "linear", "odd")
 
 
-def _coerce_table(path: str, value: object, spec: _TableSpec) -> Table:
-    """Build the canonical :class:`Table` of a field from a Table or a ``{x, y}`` mapping."""
-    if isinstance(value, Table):
-        labels = value._labels()
+def _labels(t: PwlTable) -> _TableSpec:
+    return _TableSpec(t.x_name, t.x_unit, t.y_name, t.y_unit, t.extrapolation, t.symmetry)
+
+
+def _coerce_table(path: str, value: object, spec: _TableSpec) -> PwlTable:
+    """The field's table (named ``path``, with the field's labels and options) from a table
+    (with those labels or none) or a ``{x, y}`` mapping."""
+    if isinstance(value, PwlTable):
+        labels = _labels(value)
         if labels not in (spec, _PLAIN_TABLE):
             raise ParameterError(
                 f"{path}: table is labelled {labels.x_name} [{labels.x_unit}] -> {labels.y_name} "
@@ -347,8 +232,7 @@ def _coerce_table(path: str, value: object, spec: _TableSpec) -> Table:
             f"{path} = {_fmt(value)}: must be a table {{ x = [...], y = [...] }} "
             f"({spec.x_name} [{spec.x_unit}] -> {spec.y_name} [{spec.y_unit}])"
         )
-    xs, ys = _validate_xy(path, x, y, spec.x_name, spec.y_name)
-    return Table(xs, ys, *spec)
+    return PwlTable(cast(Any, x), cast(Any, y), path, **spec._asdict())
 
 
 # --------------------------------------------------------------------------------------------------
@@ -409,15 +293,11 @@ def _static_ratio(what: str) -> Any:
 def _coerce_field(path: str, value: object, md: Mapping[str, Any]) -> object:
     kind = md["kind"]
     if kind == "float":
-        x = _to_float(path, value)
-        _check_bounds(path, x, md)
-        return x
+        return _to_float(path, value, md)
     if kind == "floats":
-        xs = _to_float_tuple(path, value)
+        xs = _to_float_tuple(path, value, md)
         if len(xs) == 0:
             raise ParameterError(f"{path} = []: needs at least one value")
-        for i, xi in enumerate(xs):
-            _check_bounds(f"{path}[{i}]", xi, md)
         return xs
     if kind == "choice":
         if value not in md["choices"] or not isinstance(value, str):
@@ -489,7 +369,7 @@ class EngineParams(_Section):
         kind="choice",
         choices=("linear", "map"),
     )
-    full_load_curve: Table | None = _param(
+    full_load_curve: PwlTable | None = _param(
         "N m",
         "engine",
         "full-load torque C_max [N m] versus engine speed omega1 [rad/s]; clamped outside the "
@@ -513,7 +393,7 @@ class EngineParams(_Section):
                     )
 
 
-_FLAT_MU = Table((0.0,), (1.0,), *_MU_SPEC)
+_FLAT_MU = PwlTable((0.0,), (1.0,), "clutch.mu_table", **_MU_SPEC._asdict())
 #: relative tolerance of ``max(pedal_map) = 1`` (shape) or ``= k12_max`` (a map in N m)
 _PEDAL_MAP_RTOL = 1e-9
 
@@ -544,7 +424,7 @@ class ClutchParams(_Section):
         min=0.0,
         min_inclusive=False,
     )
-    pedal_map: Table = _param(
+    pedal_map: PwlTable = _param(
         "-",
         "primary",
         "shape of the clutch capacity, k12/k12_max [-] in [0, 1], versus actuator/pedal position "
@@ -554,7 +434,7 @@ class ClutchParams(_Section):
         table=_PEDAL_SPEC,
     )
     static_ratio: float = _static_ratio("clutch")
-    mu_table: Table = _param(
+    mu_table: PwlTable = _param(
         "-",
         "-",
         "friction coefficient ratio mu(slip)/mu(0) [-] versus slip speed |omega1 - omega2| "
@@ -590,7 +470,8 @@ class ClutchParams(_Section):
                     "k12/k12_max in [0, 1] or make the two agree"
                 )
             shape = tuple(yi / self.k12_max for yi in pm.y)
-            object.__setattr__(self, "pedal_map", Table(pm.x, shape, *_PEDAL_SPEC))
+            scaled = PwlTable(pm.x, shape, pm.name, **_PEDAL_SPEC._asdict())
+            object.__setattr__(self, "pedal_map", scaled)
         elif abs(top - 1.0) > _PEDAL_MAP_RTOL:
             raise ParameterError(
                 f"clutch.pedal_map: the shape k12/k12_max must be 1 at full engagement (its "
@@ -625,7 +506,7 @@ class DamperParams(_Section):
     b3: float = _param("N m s/rad", "primary", "viscous friction of the primary shaft", min=0.0)
     k23: float = _param("N m", "primary", "damper hysteresis (Coulomb) friction torque", min=0.0)
     static_ratio: float = _static_ratio("damper hysteresis")
-    spring: Table = _param(
+    spring: PwlTable = _param(
         "N m",
         "primary",
         "damper spring torque phi_e [N m] versus twist theta_d = theta2 - theta3 [rad], given for "
@@ -962,7 +843,7 @@ class DrivetrainParams:
         Example: ``p.replace(**{"clutch.k12_max": 300.0, "name": "strong clutch"})`` (the
         clutch capacity ``k12_max * pedal_map(x_c)`` scaled by 1.2 at every x_c). Keys are
         dotted field paths, top-level field names (``name``, ``description``, ``provenance``) or
-        whole sections. Tables may be given as :class:`Table` or ``{"x": [...], "y": [...]}``.
+        whole sections. Tables may be given as :class:`~drivetrain_ctrl.core.tables.PwlTable` or ``{"x": [...], "y": [...]}``.
         """
         top: dict[str, Any] = {}
         per_section: dict[str, dict[str, Any]] = {}
@@ -995,7 +876,7 @@ class DrivetrainParams:
 
 
 def _plain(value: object) -> object:
-    if isinstance(value, Table):
+    if isinstance(value, PwlTable):
         return {"x": list(value.x), "y": list(value.y)}
     if isinstance(value, tuple):
         return list(value)

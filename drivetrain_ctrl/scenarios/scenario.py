@@ -64,7 +64,7 @@ from ..core.units import (
     rad_s_to_rpm,
     rpm_to_rad_s,
 )
-from ..core.validate import is_finite_real, reject_unknown
+from ..core.validate import is_finite_real, real_number, reject_unknown
 from ..plant.drivetrain import INPUTS, Drivetrain
 from ..plant.params import DrivetrainParams, default_params, load_params
 
@@ -308,10 +308,7 @@ def _reject_unknown(where: str, got: set[str], allowed: set[str]) -> None:
 def _num(where: str, d: dict[str, Any], key: str) -> float:
     if key not in d:
         raise ScenarioError(f"{where}{key}: missing")
-    v = d[key]
-    if not is_finite_real(v):
-        raise ScenarioError(f"{where}{key} = {v!r}: must be a finite number")
-    return float(v)
+    return real_number(f"{where}{key}", d[key], error=ScenarioError)
 
 
 def _resolve_idle(d: dict[str, Any], params: DrivetrainParams | None) -> dict[str, Any]:

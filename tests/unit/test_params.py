@@ -171,7 +171,16 @@ def test_table_rejects_bad_knots(x: Any, y: Any, match: str) -> None:
 
 
 def test_table_with_wrong_labels_is_rejected(p: DrivetrainParams) -> None:
-    bad = Table((0.0, 0.1), (0.0, 10.0), "theta_d", "rad", "phi_e", "N m", "linear", "odd")
+    bad = Table(
+        (0.0, 0.1),
+        (0.0, 10.0),
+        x_name="theta_d",
+        x_unit="rad",
+        y_name="phi_e",
+        y_unit="N m",
+        extrapolation="linear",
+        symmetry="odd",
+    )
     with pytest.raises(ParameterError, match="clutch.pedal_map"):
         p.replace(**{"clutch.pedal_map": bad})
 
