@@ -24,12 +24,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from drivetrain_ctrl.core.serialize import json_ready
-from drivetrain_ctrl.plant.params import default_params
-from drivetrain_ctrl.reporting.figures import plot_engagement
-from drivetrain_ctrl.scenarios.scenario import load_scenario
-from drivetrain_ctrl.sim.metrics import engagement_metrics
-from drivetrain_ctrl.sim.run import run_scenario
+from drivetrain_ctrl import default_params, engagement_metrics, load_scenario, run_scenario
+from drivetrain_ctrl.core import json_ready
+from drivetrain_ctrl.reporting import plot_engagement
 
 OUT = Path(__file__).resolve().parent.parent / "reports" / "paper_fig14"
 
