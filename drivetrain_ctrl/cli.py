@@ -37,6 +37,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from .control.laws import builtin_controllers
 from .core.serialize import json_ready
 from .core.tables import PwlTable
 from .core.validate import real_number
@@ -70,7 +71,6 @@ SIMULATION_FILES: tuple[str, ...] = (
 
 def _controller_names(sep: str) -> str:
     """The built-in controller names joined by ``sep`` (help and error texts)."""
-    from .control.laws import builtin_controllers
 
     return sep.join(builtin_controllers())
 
@@ -184,7 +184,7 @@ def run_simulation(
         res.events_dataframe().to_csv(out / "events.csv", index=False, lineterminator="\n")
         _write_json(out / "metrics.json", record)
         if plots:
-            from .reporting.figures import plot_energy, plot_simulation
+            from .reporting.figures import plot_energy, plot_simulation  # matplotlib on demand
 
             plot_simulation(res, out / "overview.png")
             plot_energy(res, out / "energy.png")
@@ -400,7 +400,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         r = run_simulation(sc, params, kind, out / f"{label}-{kind}", controller=ctl)
         done.append((label, kind, r))
     bar.close()
-    from .reporting.controller_report import build_report
+    from .reporting.controller_report import build_report  # matplotlib on demand
 
     print(
         f"{PROG} demo: linear analysis report of law (6) -> {out / 'report-paper'}/",
@@ -427,7 +427,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from .reporting.controller_report import build_report
+    from .reporting.controller_report import build_report  # matplotlib on demand
 
     _check_out_dir(Path(args.out))
     _note_existing(Path(args.out))

@@ -18,6 +18,7 @@ import base64
 import html
 import io
 import json
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,7 @@ from .controller_analysis import (
     _tf_text,
     analyse_controller,
 )
+from .figures import report_figures, write_text_pdf
 
 __all__ = [
     "Report",
@@ -153,7 +155,6 @@ def render_report(data: dict[str, Any], out: str | Path) -> Report:
 def make_figures(data: dict[str, Any]) -> dict[str, Any]:
     """``{name: Figure}``: bode, root_locus, nyquist, step, engagement, lock (from ``data``;
     :func:`drivetrain_ctrl.reporting.figures.report_figures`)."""
-    from .figures import report_figures
 
     return dict(report_figures(data))
 
@@ -401,9 +402,6 @@ def _html(data: dict[str, Any], figs: dict[str, Any]) -> str:
 
 
 def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
-    import textwrap
-
-    from .figures import write_text_pdf
 
     lines: list[tuple[str, str]] = []  # (style, text)
     inp = data["inputs"]

@@ -24,13 +24,12 @@ from numpy.typing import NDArray
 
 from ..core.units import RPM_TO_RAD_S
 from ..core.validate import is_finite_real
+from ..plant.model import Model
+from ..sim.simulator import SimulationResult
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
-
-    from ..plant.model import Model
-    from ..sim.simulator import SimulationResult
 
 __all__ = [
     "plot_simulation",

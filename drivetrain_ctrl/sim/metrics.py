@@ -21,7 +21,7 @@ spurious huge jerk; such jumps are reported separately (``lurch_m_s2`` at lock-u
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,11 +29,8 @@ from numpy.typing import NDArray
 from ..core.serialize import json_ready
 from ..core.units import m_s_to_kmh, rad_s_to_rpm
 from ..core.validate import is_finite_real
-from ..plant.model import Mode
-
-if TYPE_CHECKING:  # pragma: no cover
-    from ..plant.model import Model
-    from .simulator import SimulationResult
+from ..plant.model import Mode, Model
+from .simulator import SimulationResult
 
 __all__ = [
     "MIN_INTERVAL_S",
