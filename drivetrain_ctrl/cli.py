@@ -51,6 +51,7 @@ from .plant.params import (
 )
 from .scenarios.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
 from .sim.simulator import SimulationOptions, ZenoError
+from .sim.warmup import ensure_compiled
 from .studies.case import Case, CaseError, simulate_case
 
 __all__ = ["main", "run_simulation"]
@@ -160,6 +161,7 @@ def run_simulation(
             rtol=rtol,
             t_end=t_end,
         )
+        ensure_compiled()  # the progress notice, if the kernels are not cached
         run = simulate_case(case, preload=True)
     except CaseError as exc:
         raise InputError(str(exc)) from None
@@ -387,10 +389,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         for c in (DEMO_CONTROLLERS if s.needs_controller else (None,))
     ]
     print(
-        f"{PROG} demo: {len(jobs)} runs on parameter set {params.name!r} into {out}/ "
-        "(the first run compiles the simulation kernels unless they are cached)",
+        f"{PROG} demo: {len(jobs)} runs on parameter set {params.name!r} into {out}/",
         file=sys.stderr,
     )
+    ensure_compiled()  # the progress notice, if the kernels are not cached
     done: list[tuple[str, str, dict[str, Any]]] = []
     tic = time.perf_counter()
     bar = tqdm(jobs, desc="demo", unit="run", file=sys.stderr, dynamic_ncols=True)
@@ -432,6 +434,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     _check_out_dir(Path(args.out))
     _note_existing(Path(args.out))
     params = _load_params(args.params)
+    ensure_compiled()  # the progress notice, if the kernels are not cached
     try:
         rep = build_report(
             controller=args.controller,

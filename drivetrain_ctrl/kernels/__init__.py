@@ -20,6 +20,7 @@ This module re-exports the names the rest of the package uses (``from . import k
 
 from __future__ import annotations
 
+from ._jit import is_cached
 from .controller import (
     CF_AW,
     CF_AWK,
@@ -104,6 +105,7 @@ from .stability import (
 )
 
 __all__ = [
+    "is_cached",
     "ARG_INPUT",
     "ARG_SLIP",
     "ARG_SPEED",

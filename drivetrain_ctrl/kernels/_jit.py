@@ -146,3 +146,21 @@ jit_inline = _compiler(error_model="numpy", inline="always")
 #: allocate; it only reads and writes the arrays it is given. Reference counting of the ~60 array
 #: arguments cost two thirds of the step time (perf: atomic inc/dec in NRT_incref/NRT_decref).
 jit_nonrt = _compiler(error_model="numpy", _nrt=False)
+
+
+def is_cached(disp: Any) -> bool:
+    """True if kernel ``disp`` needs no compilation in this process: it is compiled already, or
+    numba's on-disk cache holds a fresh entry of it (the package stamp of the guard matches) for
+    this machine's code generator. Reads the cache index only (no loading, no compiling)."""
+    if getattr(disp, "signatures", None):
+        return True
+    cache = getattr(disp, "_cache", None)
+    cache_file = getattr(cache, "_cache_file", None)
+    if cache_file is None:  # caching disabled (e.g. NUMBA_DISABLE_JIT)
+        return False
+    try:
+        index = cache_file._load_index()
+        magic = disp.targetctx.codegen().magic_tuple()
+    except Exception:  # an unreadable index is a cache miss for numba too
+        return False
+    return any(len(key) > 1 and key[1] == magic for key in index)

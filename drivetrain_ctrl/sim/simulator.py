@@ -30,6 +30,7 @@ from ..control.blocks import require_controller
 from ..core.signals import Signal, constant, pack_signals
 from ..core.validate import is_finite_real
 from ..plant.model import Model
+from .compile_notice import announce_compile
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -566,6 +567,7 @@ def simulate(
     bps = sorted(b for b in bp_set if t0 < b < t_end)
     bps_arr = np.array(bps, dtype=float)
     D = _smoothed(model, opts.smoothing)
+    announce_compile()
     tic = time.perf_counter()
     out = K.simulate_kernel(
         D,

@@ -1,7 +1,7 @@
 """Compile (or load from numba's cache) every kernel once: ``python -m drivetrain_ctrl.sim.warmup``.
 
-The first call in a fresh environment compiles the hybrid integrator (about a minute or two);
-later processes load the cached machine code. ``./dev`` runs this before the tests so that
+The first call in a fresh environment compiles the hybrid integrator (a notice on stderr shows
+the expected and the elapsed time); later processes load the cached machine code. ``./dev`` runs this before the tests so that
 parallel test workers do not all compile at once.
 """
 
@@ -18,6 +18,7 @@ from ..plant.chain import Body, Chain
 from ..plant.model import Model
 from ..plant.params import default_params
 from ..scenarios.scenario import load_scenario
+from .compile_notice import compile_progress, kernels_ready
 from .simulator import SimulationOptions, simulate
 
 
@@ -46,5 +47,15 @@ def warmup() -> float:
     return time.perf_counter() - tic
 
 
+def ensure_compiled() -> None:
+    """Compile the kernels now, with the one-line progress notice on stderr, unless they are
+    cached (then nothing happens): for the command line, before its first simulation."""
+    if not kernels_ready():
+        with compile_progress():
+            warmup()
+
+
 if __name__ == "__main__":  # pragma: no cover
-    print(f"kernels ready in {warmup():.1f} s")
+    with compile_progress():
+        seconds = warmup()
+    print(f"kernels ready in {seconds:.1f} s")
