@@ -403,6 +403,28 @@ def cl_update(Cd, cs, y, nx, t, sv, fm):
             cs[CS_RL] = 1.0
 
 
+@jit_nonrt
+def _cl_output_call(Cd, cs, y, nx, t, sv):
+    """:func:`cl_output` as a compiled call (off the per-stage path: each inlined copy of the
+    controller costs seconds of compile time)."""
+    return cl_output(Cd, cs, y, nx, t, sv)
+
+
+@jit_nonrt
+def _cl_guards_call(Cd, cs, y, nx, t, sv, g, off):
+    """:func:`cl_guards` as a compiled call (see :func:`cl_guards_cold`)."""
+    cl_guards(Cd, cs, y, nx, t, sv, g, off)
+
+
+@jit_inline
+def cl_guards_cold(Cd, cs, y, nx, t, sv, g, off):
+    """:func:`cl_guards` off the per-step path: in closed loop a compiled call, not inlined."""
+    for k in range(N_CL_GUARDS):
+        g[off + k] = np.inf
+    if Cd.ci[CI_OUT] >= 0:
+        _cl_guards_call(Cd, cs, y, nx, t, sv, g, off)
+
+
 @jit_inline
 def cl_command(Cd, cs, y, nx, t, sv):
     """The controller's command before the rate limiter and the actuator (x_r of law (6));
@@ -412,6 +434,20 @@ def cl_command(Cd, cs, y, nx, t, sv):
     e = cl_error(Cd, y, sv)
     varg, vpre, v = cl_chain(Cd, cs, y, nx, t, e)
     return v
+
+
+@jit_nonrt
+def _cl_command_call(Cd, cs, y, nx, t, sv):
+    """:func:`cl_command` as a compiled call (see :func:`cl_command_cold`)."""
+    return cl_command(Cd, cs, y, nx, t, sv)
+
+
+@jit_inline
+def cl_command_cold(Cd, cs, y, nx, t, sv):
+    """:func:`cl_command` off the per-step path: in closed loop a compiled call, not inlined."""
+    if Cd.ci[CI_OUT] < 0:
+        return np.nan
+    return _cl_command_call(Cd, cs, y, nx, t, sv)
 
 
 @jit
@@ -452,6 +488,16 @@ def eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
         u[i] = sv[i]
     if Cd.ci[CI_OUT] >= 0:
         u[Cd.ci[CI_OUT]] = cl_output(Cd, cs, y, nx, t, sv)
+
+
+@jit_inline
+def eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
+    """:func:`eval_u` off the per-stage path: the controller by a compiled call."""
+    eval_inputs(S, ua, ub, t, t_ref, sv)
+    for i in range(u.shape[0]):
+        u[i] = sv[i]
+    if Cd.ci[CI_OUT] >= 0:
+        u[Cd.ci[CI_OUT]] = _cl_output_call(Cd, cs, y, nx, t, sv)
 
 
 @jit_inline

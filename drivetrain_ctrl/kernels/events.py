@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import jit_inline, jit_nonrt
-from .controller import CI_OUT, N_CL_EVENT_BLOCKS, cl_guards, cl_update, eval_u
+from ._jit import jit, jit_inline, jit_nonrt
+from .controller import CI_OUT, N_CL_EVENT_BLOCKS, cl_guards, cl_guards_cold, cl_update, eval_u_cold
 from .decide import (
     DM_MAX_CANDIDATES,
     DM_TOO_MANY,
@@ -111,15 +111,15 @@ def _slip_dip(D, fm, y, y1, Ks, hh):
 MAX_DIP_RETAKES = 4
 
 
-@jit_inline
+@jit_nonrt
 def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):
     """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT).
 
-    Inlined into the step loop and the event location: a call passes ChainData and CtrlData as
-    some 350 flattened arguments."""
-    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+    A compiled call (not inlined: compiled once for the event location and the step loop, where
+    it is needed only for a step cut at a stop time)."""
+    eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
-    cl_guards(Cd, cs, y, nx, t, sv, g, n_guards(D))
+    cl_guards_cold(Cd, cs, y, nx, t, sv, g, n_guards(D))
 
 
 @jit_inline
@@ -175,7 +175,7 @@ def _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_
 @jit_nonrt
 def _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol, cand, caps):
     """The inputs at t into ``u``, then :func:`_dm_classify_core`."""
-    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+    eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     return _dm_classify_core(D, y, u, fm, reg, tol, cand, caps)
 
 
@@ -183,14 +183,14 @@ def _dm_classify(D, S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u, fm, reg, tol, can
 def _dm_controller(Cd, cs, S, ua, ub, t, t_ref, y, nx, sv, u, fm):
     """Controller update after the plant's decision, then the inputs at t again."""
     cl_update(Cd, cs, y, nx, t, sv, fm)
-    eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
+    eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
 
 
 @jit_nonrt
 def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):
     """Guards after a decision into ``g0``; True if none is violated."""
     guards_into(D, y, u, fm, reg, Lam, g0, tau)
-    cl_guards(Cd, cs, y, nx, t, sv, g0, n_guards(D))
+    cl_guards_cold(Cd, cs, y, nx, t, sv, g0, n_guards(D))
     ok = True
     for q in range(g0.shape[0]):
         if g0[q] < -1e-9 * (1.0 + abs(g0[q])):
@@ -198,7 +198,7 @@ def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):
     return ok
 
 
-@jit_inline
+@jit
 def _decide_fast(
     D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
 ):

@@ -35,6 +35,7 @@ from .controller import (
     N_CL_EVENT_BLOCKS,
     N_CL_GUARDS,
     cl_command,
+    cl_command_cold,
     cl_sample,
     eval_inputs,
     n_cl_states,
@@ -425,7 +426,7 @@ def simulate_kernel(
     T[0] = t
     Y[0] = y
     U[0, :nu] = u
-    U[0, nu] = cl_command(Cd, cs, y, nx, t, sv)
+    U[0, nu] = cl_command_cold(Cd, cs, y, nx, t, sv)
     FM[0] = fm
     RG[0] = reg
     n_rec = 1
@@ -445,7 +446,7 @@ def simulate_kernel(
             # u, sv hold the inputs at (t, y): set by the mode decision at the event or stop
             _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
             U[n_rec, U.shape[1] - 1] = (
-                np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
+                np.nan if Cd.ci[CI_OUT] < 0 else cl_command_cold(Cd, cs, y, nx, t, sv)
             )
             n_rec += 1
             pending = False
