@@ -481,11 +481,17 @@ def cl_sample(Cd, cs, y, sv, t):
 
 
 @jit_inline
-def eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
-    """Plant inputs at ``t``: signals, with the controlled input from the controller."""
+def _signal_inputs(S, ua, ub, t, t_ref, sv, u):
+    """The input signals at ``t`` into ``sv`` and ``u`` (before the controller's output)."""
     eval_inputs(S, ua, ub, t, t_ref, sv)
     for i in range(u.shape[0]):
         u[i] = sv[i]
+
+
+@jit_inline
+def eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
+    """Plant inputs at ``t``: signals, with the controlled input from the controller."""
+    _signal_inputs(S, ua, ub, t, t_ref, sv, u)
     if Cd.ci[CI_OUT] >= 0:
         u[Cd.ci[CI_OUT]] = cl_output(Cd, cs, y, nx, t, sv)
 
@@ -493,9 +499,7 @@ def eval_u(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
 @jit_inline
 def eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u):
     """:func:`eval_u` off the per-stage path: the controller by a compiled call."""
-    eval_inputs(S, ua, ub, t, t_ref, sv)
-    for i in range(u.shape[0]):
-        u[i] = sv[i]
+    _signal_inputs(S, ua, ub, t, t_ref, sv, u)
     if Cd.ci[CI_OUT] >= 0:
         u[Cd.ci[CI_OUT]] = _cl_output_call(Cd, cs, y, nx, t, sv)
 
