@@ -44,6 +44,21 @@ relative 1e-9, else :class:`ParameterError`) and it is stored divided by ``k12_m
 capacity is the file's values again (exactly when they are ``k12_max`` times binary fractions, as
 in the built-in set; else to one rounding). :func:`save_params` writes the shape.
 
+A file may say only what differs from another set: a top-level ``base = "passenger-car"`` (a
+built-in set name, or a path to a TOML file, relative to the file that names it) loads that set
+and overrides it with the file's own values, section by section and key by key (a table is
+replaced whole). The result is validated like a whole set. The file must give its own
+``[meta] name``; the base's provenance entries of the values it overrides are dropped (they
+describe the base's values), its own are added. Example::
+
+    base = "passenger-car"
+
+    [meta]
+    name = "heavy passenger car"
+
+    [vehicle]
+    M_v = 1600.0
+
 Unknown or misspelt keys are errors (with a "did you mean" suggestion). The one exception is a
 ``[law6]`` section (with ``[provenance]`` entries ``"law6.*"``) of older files: law (6)'s gains are
 controller settings (``k_r``, ``x_r0`` of a controller file, :mod:`drivetrain_ctrl.control.laws`),
@@ -65,7 +80,7 @@ import numpy as np
 import tomli_w
 from numpy.typing import NDArray
 
-from ..core.registry import load_toml_as
+from ..core.registry import load_toml_as, read_toml
 from ..core.tables import PwlTable
 from ..core.units import GRAVITY
 from ..core.validate import ParameterError, did_you_mean, real_number
@@ -907,15 +922,18 @@ def _mapping(path: str, value: object) -> Mapping[str, Any]:
     return value
 
 
-def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
+def params_from_dict(data: Mapping[str, Any], *, where: Path | None = None) -> DrivetrainParams:
     """Build and validate :class:`DrivetrainParams` from the layout of :func:`params_to_dict`.
+
+    A top-level ``base`` names a set that ``data`` overrides (module docstring); a relative base
+    path is taken from directory ``where`` (None: the working directory).
 
     Unknown keys raise :class:`ParameterError` (with a suggestion); so do missing keys, except the
     optional fields listed in the module docstring. ``provenance`` may be omitted. A retired
     section (:data:`RETIRED_SECTIONS`, e.g. ``law6``) and its provenance entries are ignored with
     a :class:`ParameterSectionWarning` naming the section and its values.
     """
-    data = _drop_retired_sections(_mapping("<parameters>", data))
+    data = _drop_retired_sections(_with_base(_mapping("<parameters>", data), where))
     allowed = ["meta", *_SECTIONS, "provenance"]
     for key in data:
         if key not in allowed:
@@ -957,6 +975,59 @@ def params_from_dict(data: Mapping[str, Any]) -> DrivetrainParams:
         provenance=data.get("provenance", {}),
         **sections,
     )
+
+
+def _with_base(
+    data: Mapping[str, Any], where: Path | None, seen: tuple[Path, ...] = ()
+) -> Mapping[str, Any]:
+    """``data`` merged onto its ``base`` set (module docstring), recursively; ``data`` itself if it
+    names none. ``where``: the directory of the file ``data`` comes from (None: the working
+    directory), for a relative base path; ``seen``: the files above in the chain (a circle is an
+    error)."""
+    if "base" not in data:
+        return data
+    base = data["base"]
+    if not isinstance(base, str) or not base.strip():
+        raise ParameterError(
+            f"base = {_fmt(base)}: must be a parameter set name or the path of a TOML file"
+        )
+    try:
+        source = _resolve_source(base)
+    except ValueError as exc:  # an unknown set name
+        raise ParameterError(f"base = {base!r}: {exc}") from None
+    if not source.is_absolute() and source.parent != PARAMETER_SETS_DIR and where is not None:
+        source = where / source
+    source = source.resolve()
+    if source in seen:
+        chain = " -> ".join(str(s) for s in (*seen, source))
+        raise ParameterError(f"base = {base!r}: the sets name each other in a circle ({chain})")
+    if not source.is_file():
+        raise ParameterError(f"base = {base!r}: no such parameter file ({source})")
+    parent = _with_base(read_toml(source, error=ParameterError), source.parent, (*seen, source))
+    meta = data.get("meta")
+    if not isinstance(meta, Mapping) or "name" not in meta:
+        raise ParameterError(
+            f"meta.name: missing key (a set with base = {base!r} needs a name of its own)"
+        )
+    merged: dict[str, Any] = {k: v for k, v in parent.items() if k != "provenance"}
+    overridden: set[str] = set()
+    for key, value in data.items():
+        if key in ("base", "provenance"):
+            continue
+        old = merged.get(key)
+        if isinstance(value, Mapping) and isinstance(old, Mapping):
+            merged[key] = {**old, **value}
+            overridden |= {f"{key}.{k}" for k in value}
+        else:
+            merged[key] = value
+            if isinstance(value, Mapping):
+                overridden |= {f"{key}.{k}" for k in value}
+    prov = {k: v for k, v in dict(parent.get("provenance", {})).items() if k not in overridden}
+    own = data.get("provenance", {})
+    merged["provenance"] = {**prov, **(dict(own) if isinstance(own, Mapping) else {})}
+    if not isinstance(own, Mapping):
+        merged["provenance"] = own  # reported by params_from_dict
+    return merged
 
 
 def _drop_retired_sections(data: Mapping[str, Any]) -> Mapping[str, Any]:
@@ -1020,7 +1091,13 @@ def load_params(source: str | Path) -> DrivetrainParams:
     missing file.
     """
 
-    return load_toml_as(_resolve_source(source), params_from_dict, error=ParameterError)
+    path = _resolve_source(source)
+    seen = (path.resolve(),)
+
+    def from_dict(d: dict[str, Any]) -> DrivetrainParams:
+        return params_from_dict(_with_base(d, path.parent, seen))
+
+    return load_toml_as(path, from_dict, error=ParameterError)
 
 
 def save_params(params: DrivetrainParams, path: str | Path) -> Path:
