@@ -43,7 +43,7 @@ class CaseError(ValueError):
 
 @dataclass(frozen=True, kw_only=True)
 class Case:
-    """One closed- or open-loop run, as data (picklable; compare and hash by value).
+    """One closed- or open-loop run, as data (picklable; compares by value).
 
     scenario: built-in name, scenario TOML file or :class:`Scenario`.
     params: parameter set name (``"default"``), TOML file or :class:`DrivetrainParams`.
@@ -214,6 +214,12 @@ def run_case(case: Case) -> dict[str, Any]:
         return {
             "label": case.label,
             "scenario": str(getattr(case.scenario, "name", case.scenario)),
+            "parameter_set": str(getattr(case.params, "name", case.params)),
+            "controller": (
+                None
+                if case.controller is None
+                else str(getattr(case.controller, "name", case.controller))
+            ),
             "model": case.model,
             **{f"param:{k}": v for k, v in sorted(case.overrides.items())},
             "status": "failed",

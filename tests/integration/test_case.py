@@ -68,6 +68,10 @@ def test_a_failed_run_is_a_record_not_an_exception(monkeypatch: pytest.MonkeyPat
     rec = run_case(Case(scenario="engage-ramp", overrides={"vehicle.M_v": 1.0e3}, label="s7"))
     assert rec["status"] == "failed" and "mode changes" in rec["error"]
     assert rec["label"] == "s7" and rec["param:vehicle.M_v"] == 1.0e3
+    # the same identity columns as a record of a run that finished
+    ok = run_case(Case(scenario="engage-ramp", model="reduced"))
+    assert {"label", "scenario", "parameter_set", "controller", "model"} <= set(rec) & set(ok)
+    assert rec["parameter_set"] == "passenger-car" and rec["controller"] is None
 
 
 def test_the_cli_and_run_case_give_the_same_metrics(tmp_path) -> None:
