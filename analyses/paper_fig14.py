@@ -36,6 +36,14 @@ LOCKUP_AGREEMENT_S = 0.15
 MIN_ENGINE_RPM = 800.0
 MAX_TRACKING_RMS_RPM = {"paper": 400.0, "pi": 120.0}
 MAX_RESIDUAL = 1e-6
+#: the figures printed per run, under their names in metrics.json
+QUOTED = (
+    "lockup_time_s",
+    "engine_speed_min_rpm",
+    "engine_speed_max_rpm",
+    "tracking_rms_rpm",
+    "jerk_max_m_s3",
+)
 
 
 def checks(runs: dict[str, dict[str, Any]], controller: str) -> dict[str, bool]:
@@ -97,11 +105,7 @@ def main(*, quick: bool = False, out: Path | str = OUT) -> dict[str, Any]:
     (out / "metrics.json").write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
     for ctl, r in results.items():
         for kind, m in r["runs"].items():
-            print(
-                f"{ctl:6s} {kind:8s} lock-up {m['lockup_time_s']} s, engine "
-                f"{m['engine_speed_min_rpm']}..{m['engine_speed_max_rpm']} rpm, tracking rms "
-                f"{m['tracking_rms_rpm']} rpm, jerk max {m['jerk_max_m_s3']} m/s^3"
-            )
+            print(f"{ctl:6s} {kind:8s} " + ", ".join(f"{k} {m[k]}" for k in QUOTED))
         for name, ok in r["checks"].items():
             print(f"  [{'ok' if ok else 'FAIL'}] {name}")
     return results

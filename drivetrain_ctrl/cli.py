@@ -50,6 +50,7 @@ from .plant.params import (
     load_params,
 )
 from .scenarios.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from .sim.metrics import METRICS, metric_table
 from .sim.simulator import SimulationOptions, ZenoError
 from .sim.warmup import ensure_compiled
 from .studies.case import Case, CaseError, simulate_case
@@ -238,26 +239,44 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
     return str(v)
 
 
+#: the figures of merit the console quotes after a run, under their names in ``metrics.json``
+CONSOLE_METRICS: tuple[str, ...] = (
+    "lockup_time_s",
+    "engagement_time_s",
+    "clutch_energy_J",
+    "engine_speed_min_rpm",
+    "engine_speed_max_rpm",
+    "lurch_rad_s2",
+    "jerk_max_m_s3",
+    "tracking_rms_rpm",
+    "torque_match_rms_Nm",
+    "final_vehicle_speed_kmh",
+    "energy_residual_rel",
+)
+
+
+def _fmt_metric(key: str, v: Any) -> str:
+    """A metric's value as the console and ``summary.md`` quote it."""
+    return _fmt(v, ".2e" if key == "energy_residual_rel" else ".4g")
+
+
 def _summary_line(m: dict[str, Any], timing: dict[str, Any]) -> str:
-    lock = m["lockup_time_s"]
-    lock_txt = f"lock-up at {lock:.4g} s" if lock is not None else "no lock-up"
+    """The console summary of one run: what ran, then ``name value`` of :data:`CONSOLE_METRICS`
+    (the names of ``metrics.json``, whose suffix is the unit; ``-``: undefined, null)."""
     ctl = f", controller {m['controller']['name']}" if m.get("controller") else ""
     notes = "".join(f"\n  note: {n}" for n in m.get("notes") or [])
+    figures = textwrap.fill(
+        ", ".join(f"{k} {_fmt_metric(k, m[k])}" for k in CONSOLE_METRICS),
+        width=100,
+        initial_indent="  ",
+        subsequent_indent="  ",
+        break_long_words=False,
+        break_on_hyphens=False,
+    )
     return (
         f"{m['scenario']} / {m['model']} model ({m['parameter_set']}{ctl}): {m['status']}, "
         f"{m['n_samples']} samples, {m['n_events']} events, {timing['wall_time_s']:.3g} s\n"
-        f"  {lock_txt}; clutch energy {_fmt(m['clutch_energy_J'])} J; "
-        f"final speed {_fmt(m['final_vehicle_speed_kmh'])} km/h; "
-        f"engine {_fmt(m['min_engine_speed_rpm'])}..{_fmt(m['max_engine_speed_rpm'])} rpm; "
-        f"max jerk {_fmt(m['max_vehicle_jerk_m_s3'])} m/s^3; "
-        f"energy residual {_fmt(m['energy_residual_rel'], '.2g')}"
-        + (
-            f"\n  tracking rms {_fmt(m['tracking_rms_rpm'])} rpm; "
-            f"torque match rms {_fmt(m['torque_match_rms_Nm'])} N m; "
-            f"jerk max/rms {_fmt(m['jerk_max_m_s3'])}/{_fmt(m['jerk_rms_m_s3'])} m/s^3"
-            if ctl
-            else ""
-        )
+        + figures
         + notes
     )
 
@@ -291,32 +310,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 #: controllers the demo runs the closed-loop scenarios with
 DEMO_CONTROLLERS: tuple[str, ...] = ("paper", "pi")
 
-#: (metric key, label) rows of the demo summary table
-_SUMMARY_ROWS: tuple[tuple[str, str], ...] = (
-    ("status", "status"),
-    ("lockup_time_s", "lock-up time [s]"),
-    ("clutch_energy_J", "clutch friction energy [J]"),
-    ("final_vehicle_speed_kmh", "final vehicle speed [km/h]"),
-    ("max_vehicle_accel_m_s2", "max vehicle acceleration [m/s^2]"),
-    ("max_vehicle_jerk_m_s3", "max vehicle jerk [m/s^3]"),
-    ("lurch_m_s2", "lurch at lock-up [m/s^2]"),
-    ("lockup_slip_accel_rad_s2", "slip acceleration at lock-up [rad/s^2]"),
-    ("min_engine_speed_rpm", "min engine speed [rpm]"),
-    ("max_engine_speed_rpm", "max engine speed [rpm]"),
-    ("engine_stalled", "engine stalled"),
-    ("peak_shaft_torque_Nm", "peak driveline torque, primary frame [N m]"),
-    ("peak_axle_torque_Nm", "peak half-shaft torque, wheel frame [N m]"),
-    ("n_backlash_impacts", "backlash impacts"),
-    ("n_backlash_crossings", "backlash crossings"),
-    ("n_events", "events"),
-    ("n_samples", "samples"),
-    ("energy_residual_rel", "energy residual (relative)"),
-    ("engagement_time_s", "engagement time (start to lock-up) [s]"),
-    ("tracking_rms_rpm", "tracking rms, omega_r - omega_1 [rpm]"),
-    ("torque_match_rms_Nm", "torque match rms, tau_13 - C_1 [N m]"),
-    ("jerk_max_m_s3", "max jerk, 10 Hz filtered [m/s^3]"),
-    ("accel_p2p_after_lock_m_s2", "p2p acceleration after lock-up [m/s^2]"),
-    ("n_lock_events", "clutch lock events"),
+#: the rows of the demo's summary table: the figures of merit (:data:`METRICS` of kind
+#: ``"figure"``) and the run's status, size and energy check, under their names in ``metrics.json``
+SUMMARY_METRICS: tuple[str, ...] = (
+    ("status",)
+    + tuple(k for k, info in METRICS.items() if info.kind == "figure")
+    + ("n_events", "n_samples", "energy_residual_rel")
 )
 
 
@@ -340,19 +339,19 @@ def _summary_md(
     heads = [f"{s} / {k}" for s, k, _ in runs]
     lines.append("| metric | " + " | ".join(heads) + " |")
     lines.append("|---|" + "---:|" * len(runs))
-    for key, label in _SUMMARY_ROWS:
-        cells = []
-        for _, _, r in runs:
-            v = r["metrics"].get(key)
-            cells.append(_fmt(v, ".2e" if key == "energy_residual_rel" else ".4g"))
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    for key in SUMMARY_METRICS:
+        cells = [_fmt_metric(key, r["metrics"].get(key)) for _, _, r in runs]
+        lines.append(f"| `{key}` | " + " | ".join(cells) + " |")
     cells = [_fmt(r["timing"]["wall_time_s"], ".3g") for _, _, r in runs]
     lines.append("| simulation wall time [s] | " + " | ".join(cells) + " |")
     lines += [
         "",
-        "Driveline torque: gear mesh (full model) or lumped shaft (reduced model), referred to",
-        "the primary shaft. The reduced model has no half-shafts. Lurch is the jump of the",
-        "vehicle acceleration at lock-up (about zero with a compliant driveline).",
+        "The names are those of `metrics.json`; `-`: undefined for the run (null). Definitions:",
+        "",
+    ]
+    for key, unit, text in metric_table(SUMMARY_METRICS):
+        lines.append(f"- `{key}`" + (f" [{unit}]" if unit else "") + f": {text}")
+    lines += [
         "",
         "## Outputs",
         "",

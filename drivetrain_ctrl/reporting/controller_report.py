@@ -26,6 +26,7 @@ from typing import Any
 from ..control.laws import ControllerSpec
 from ..plant.params import DrivetrainParams
 from ..scenarios.scenario import Scenario
+from ..sim.metrics import METRICS, metric_table
 from .controller_analysis import (
     DISAGREEMENT_THRESHOLD,
     MARGIN_KEYS,
@@ -355,12 +356,28 @@ def _sections(
             ["step"],
         )
     )
-    # 8 engagement metrics
-    rows = [["metric", "value"]] + [
-        [k, _fmt(v) if not isinstance(v, list) else "; ".join(map(str, v))]
-        for k, v in sorted(data["engagement_metrics"].items())
+    # 8 engagement metrics: every key with its unit and definition (sim.metrics.METRICS)
+    em = data["engagement_metrics"]
+    rows = [["metric", "value", "unit", "definition"]] + [
+        [
+            k,
+            _fmt(em[k]) if not isinstance(em[k], list) else "; ".join(map(str, em[k])) or "-",
+            unit or "-",
+            text,
+        ]
+        for k, unit, text in metric_table(k for k in METRICS if k in em)
     ]
-    out.append((SECTIONS[7], [], [("Engagement metrics", rows)], []))
+    out.append(
+        (
+            SECTIONS[7],
+            [
+                "The figures of merit of the nonlinear run, under the names of metrics.json (the "
+                "definitions are those of drivetrain_ctrl.sim.metrics.METRICS)."
+            ],
+            [("Engagement metrics", rows)],
+            [],
+        )
+    )
     # 9 statement
     out.append((SECTIONS[8], list(data["linear_vs_nonlinear"]["statements"]), [], []))
     return out

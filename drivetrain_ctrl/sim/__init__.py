@@ -3,7 +3,7 @@ engagement figures of merit and the kernel warm-up."""
 
 from __future__ import annotations
 
-from .metrics import METRIC_KEYS, engagement_metrics, state_accelerations
+from .metrics import METRIC_KEYS, METRICS, MetricInfo, engagement_metrics, state_accelerations
 from .run import run_scenario
 from .simulator import (
     Event,
@@ -25,4 +25,6 @@ __all__ = [
     "engagement_metrics",
     "state_accelerations",
     "METRIC_KEYS",
+    "METRICS",
+    "MetricInfo",
 ]

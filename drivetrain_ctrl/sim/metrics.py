@@ -3,24 +3,40 @@
 :func:`engagement_metrics` condenses a :class:`~drivetrain_ctrl.sim.simulator.SimulationResult` into a
 flat dict of the standard figures of merit of a dry-clutch engagement (Della Gatta et al., "A survey
 on modeling and engagement control for automotive dry clutch", Mechatronics 55 (2018)): engagement
-(lock-up) time, friction energy dissipated in the clutch, lurch and jerk of the vehicle, engine
-stall margin and flare, peak driveline torque and backlash activity.
+(lock-up) time, friction energy dissipated in the clutch, lurch and jerk, engine stall margin and
+flare, tracking, peak driveline torque and backlash activity.
 
-Every float is rounded to :data:`SIGNIFICANT_DIGITS` significant digits, so that two runs of the
-same simulation give byte-identical JSON; a figure that is undefined for a run (no lock-up, no
-axle in the reduced model, ...) is ``None`` (JSON ``null``). Key suffixes carry the unit
-(``_s``, ``_J``, ``_kmh``, ``_rpm``, ``_m_s2``, ``_m_s3``, ``_Nm``, ``_rad_s2``).
+One name, one definition: :data:`METRICS` maps every key :func:`engagement_metrics` returns to its
+unit and its definition (a :class:`MetricInfo`), and the command line, the demo's ``summary.md``,
+the controller report and the documentation take the definitions from there
+(:func:`metric_table`, :func:`metrics_markdown`). A name ends in its unit (``_s``, ``_J``,
+``_rpm``, ``_rad_s2``, ``_m_s2``, ``_m_s3``, ``_Nm``, ``_kmh``; ``_rel`` for a relative number).
+
+Windows. The figures measure the engagement commanded at ``start`` (the controller's start time,
+or the start of the pedal release): unless their definition names another interval, over the
+*engagement window* ``W = [start, lock-up + 1 s]`` (to the end of the run without lock-up). The
+*slip window* of the tracking and torque-match figures is ``[start + 0.3 s, lock-up]`` (to the end
+of the run without lock-up). Only the keys describing the run itself (``t_end_s``, ``n_events``,
+``work_in_J``, ``energy_residual_rel``, ...) cover the whole run. A figure that is undefined for
+a run (no lock-up; the clutch does not slip where the figure measures it; no axle in the reduced
+model; ...) is ``None`` (JSON ``null``).
+
+Every float is rounded to :data:`~drivetrain_ctrl.core.serialize.SIGNIFICANT_DIGITS` significant
+digits, so that two runs of the same simulation give byte-identical JSON.
 
 Accelerations are evaluated from the model's right-hand side at the samples (not by
 differentiating the sampled speed twice): on every sample interval ``[t_k, t_k+1]`` the integrator
 holds the mode of sample ``k``, so the acceleration at its start is ``rhs(x_k, u_k, mode_k)`` and
-at its end the left limit ``rhs(x_k+1, u_k+1, mode_k)``. Jerk is the difference quotient of these
-over the interval, so a jump of the acceleration at a mode change (an event) is not turned into a
-spurious huge jerk; such jumps are reported separately (``lurch_m_s2`` at lock-up).
+at its end the left limit ``rhs(x_k+1, u_k+1, mode_k)`` (:func:`state_accelerations`). A jump of
+an acceleration at a mode change (an event) is reported as such: ``lurch_rad_s2`` at lock-up.
+The vehicle itself sits behind the driveline's springs, so its acceleration does not jump; the
+lock-up shock reaches it as jerk and shuffle (``jerk_max_m_s3``, ``accel_p2p_after_lock_m_s2``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -34,8 +50,12 @@ from .simulator import SimulationResult
 
 __all__ = [
     "MIN_INTERVAL_S",
+    "METRICS",
     "METRIC_KEYS",
+    "MetricInfo",
     "engagement_metrics",
+    "metric_table",
+    "metrics_markdown",
     "state_accelerations",
     "filtered_jerk",
     "jerk",
@@ -58,56 +78,202 @@ class DrivetrainLike(Protocol):
 #: sample intervals shorter than this [s] are skipped when differencing accelerations (they only
 #: occur at events located to ~1e-13 s, where a difference quotient is round-off)
 MIN_INTERVAL_S: float = 1e-12
-
-#: the keys of :func:`engagement_metrics`, always all present
-METRIC_KEYS: tuple[str, ...] = (
-    "model",
-    "gear",
-    "status",
-    "t_end_s",
-    "n_samples",
-    "n_events",
-    "inconsistent_decisions",
-    "lockup_time_s",
-    "clutch_energy_J",
-    "work_in_J",
-    "energy_residual_rel",
-    "final_vehicle_speed_kmh",
-    "max_vehicle_accel_m_s2",
-    "max_vehicle_jerk_m_s3",
-    "lurch_m_s2",
-    "lockup_slip_accel_rad_s2",
-    "min_engine_speed_rpm",
-    "max_engine_speed_rpm",
-    "engine_stalled",
-    "peak_axle_torque_Nm",
-    "peak_shaft_torque_Nm",
-    "n_backlash_impacts",
-    "n_backlash_crossings",
-    "start_s",
-    "engagement_time_s",
-    "n_lock_events",
-    "engine_speed_max_rpm",
-    "engine_speed_min_rpm",
-    "tracking_rms_rpm",
-    "torque_match_rms_Nm",
-    "lurch_rad_s2",
-    "accel_p2p_after_lock_m_s2",
-    "jerk_max_m_s3",
-    "jerk_rms_m_s3",
-    "notes",
-)
-
 #: lock-up is the start of the first stuck phase of the clutch lasting at least this [s]
 LOCKUP_MIN_DURATION_S: float = 0.2
-#: engagement-window settings: tracking/torque-match from start + this [s] to lock-up
+#: the slip window of the tracking and torque-match figures starts this long [s] after the start
 TRACKING_DELAY_S: float = 0.3
-#: after lock-up [s]: window of the engine-speed, p2p-acceleration and jerk figures
+#: the engagement window ends this long [s] after lock-up
 AFTER_LOCK_S: float = 1.0
 #: jerk: vehicle acceleration low-pass filtered at this [Hz] (2nd-order Butterworth, zero phase)
 JERK_FILTER_HZ: float = 10.0
-#: uniform resampling rate [Hz] of the signals behind the windowed figures
+#: uniform resampling rate [Hz] of the signals behind the jerk and the RMS figures
 RESAMPLE_HZ: float = 1000.0
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    """What one key of :func:`engagement_metrics` means.
+
+    ``unit``: the unit of the value (``"-"`` for a count or a relative number, ``""`` for a text,
+    a flag or a list); ``definition``: the one definition of the name, with its interval;
+    ``kind``: ``"figure"`` (a figure of merit of the engagement) or ``"run"`` (describes the run
+    itself: model, status, sizes, energy check, notes).
+    """
+
+    unit: str
+    definition: str
+    kind: str = "figure"
+
+
+_W = (
+    f"over the engagement window W = [start, lock-up + {AFTER_LOCK_S:g} s] (to the end of the run "
+    "without lock-up)"
+)
+_SLIP = (
+    f"over the slip window [start + {TRACKING_DELAY_S:g} s, lock-up] (to the end of the run "
+    "without lock-up)"
+)
+
+#: The one table of the keys of :func:`engagement_metrics`, in the order they are returned: name
+#: -> :class:`MetricInfo` (unit, definition, kind); the documentation's figures-of-merit section
+#: shows it as a table.
+#:
+#: :meta hide-value:
+METRICS: dict[str, MetricInfo] = {
+    # -- the run ---------------------------------------------------------------------------------
+    "model": MetricInfo(
+        "", "Model kind of the drivetrain, full or reduced (None without a Drivetrain).", "run"
+    ),
+    "gear": MetricInfo("-", "Engaged gear (None without a Drivetrain).", "run"),
+    "status": MetricInfo(
+        "", "Simulation status: ok, or why the run stopped early (zeno, max_steps, ...).", "run"
+    ),
+    "t_end_s": MetricInfo("s", "Final time of the run.", "run"),
+    "n_samples": MetricInfo("-", "Number of recorded samples of the run.", "run"),
+    "n_events": MetricInfo(
+        "-",
+        "Number of events of the whole run: mode changes of the model's elements and, in closed "
+        "loop, of the controller's blocks.",
+        "run",
+    ),
+    "inconsistent_decisions": MetricInfo(
+        "-",
+        "Mode decisions of the whole run in which no stuck/slip combination was consistent (the "
+        "least inconsistent was taken); 0 in a sound run.",
+        "run",
+    ),
+    "work_in_J": MetricInfo(
+        "J",
+        "Work supplied by the sources over the whole run (None if energies were not integrated).",
+        "run",
+    ),
+    "energy_residual_rel": MetricInfo(
+        "-",
+        "Relative energy-balance residual at the end of the run, |dE_stored - W_in + E_diss| / "
+        "max(W_in, E_stored) (None if energies were not integrated).",
+        "run",
+    ),
+    "start_s": MetricInfo(
+        "s",
+        "Start command: the controller's start time, the start of the pedal release, or the "
+        "start of the run; where the engagement window begins.",
+        "run",
+    ),
+    "notes": MetricInfo(
+        "",
+        "Plain statements about the run: no lock-up, no engagement, engine stall, inconsistent "
+        "mode decisions.",
+        "run",
+    ),
+    # -- the engagement --------------------------------------------------------------------------
+    "lockup_time_s": MetricInfo(
+        "s",
+        "Lock-up time: the start of the first stuck phase of the clutch, entered from slip at or "
+        f"after the start, that lasts at least {LOCKUP_MIN_DURATION_S:g} s; None if there is none.",
+    ),
+    "engagement_time_s": MetricInfo(
+        "s", "Engagement time, lock-up time minus start; None without lock-up."
+    ),
+    "n_lock_events": MetricInfo(
+        "-",
+        "Number of times the clutch entered its stuck mode (1 for a clean engagement, more after "
+        f"re-slips, 0 if it never locked), {_W}.",
+    ),
+    "clutch_energy_J": MetricInfo(
+        "J",
+        "Energy dissipated by the clutch friction, the integral of clutch torque times slip speed "
+        "from the start to lock-up (to the end of the run without lock-up).",
+    ),
+    "lockup_slip_accel_rad_s2": MetricInfo(
+        "rad/s^2",
+        "Slip acceleration d(omega_in - r omega_out)/dt of the clutch just before lock-up (the "
+        "no-lurch condition asks for 0); None without lock-up.",
+    ),
+    "lurch_rad_s2": MetricInfo(
+        "rad/s^2",
+        "Lurch: the jump of the acceleration of the clutch's driven body at lock-up, after minus "
+        "before (the clutch disc omega_disc in the full model, the primary shaft omega_primary in "
+        "the reduced one); None without lock-up.",
+    ),
+    "engine_speed_min_rpm": MetricInfo(
+        "rpm", f"Lowest engine speed at the samples (the stall margin), {_W}."
+    ),
+    "engine_speed_max_rpm": MetricInfo(
+        "rpm", f"Highest engine speed at the samples (the flare), {_W}."
+    ),
+    "engine_stalled": MetricInfo(
+        "", f"True if the engine's friction is in its standstill mode at some sample, {_W}."
+    ),
+    "tracking_rms_rpm": MetricInfo(
+        "rpm",
+        f"RMS of the engine-speed error omega_r - omega_engine resampled at "
+        f"{RESAMPLE_HZ / 1000:g} kHz, {_SLIP}; None without a reference (open loop) or if the "
+        "clutch does not slip in that window.",
+    ),
+    "torque_match_rms_Nm": MetricInfo(
+        "N m",
+        "RMS of clutch torque minus engine torque, tau_13 - C_1 (the paper's claim: tau_13 ~ C_1 "
+        f"while slipping), resampled at {RESAMPLE_HZ / 1000:g} kHz, {_SLIP}; None if the clutch "
+        "does not slip in that window.",
+    ),
+    "vehicle_accel_max_m_s2": MetricInfo(
+        "m/s^2",
+        f"Largest |vehicle acceleration| at the samples, from the model's right-hand side, {_W}.",
+    ),
+    "accel_p2p_after_lock_m_s2": MetricInfo(
+        "m/s^2",
+        "Peak-to-peak vehicle acceleration at the samples (the shuffle after lock-up), over "
+        f"[lock-up, lock-up + {AFTER_LOCK_S:g} s]; None without lock-up.",
+    ),
+    "jerk_max_m_s3": MetricInfo(
+        "m/s^3",
+        f"Largest |jerk|, {_W}; the jerk is the derivative of the vehicle acceleration resampled "
+        f"at {RESAMPLE_HZ / 1000:g} kHz and low-pass filtered at {JERK_FILTER_HZ:g} Hz (2nd-order "
+        "Butterworth, zero phase).",
+    ),
+    "jerk_rms_m_s3": MetricInfo("m/s^3", f"RMS of the filtered jerk of jerk_max_m_s3, {_W}."),
+    "shaft_torque_max_Nm": MetricInfo(
+        "N m",
+        "Largest |driveline torque| in the primary-shaft frame (coupling backlash: the gear mesh "
+        f"of the full model, the lumped shaft of the reduced one), {_W}.",
+    ),
+    "axle_torque_max_Nm": MetricInfo(
+        "N m",
+        f"Largest |half-shaft torque| in the wheel frame, {_W}; None for the reduced model (no "
+        "half-shafts).",
+    ),
+    "n_backlash_impacts": MetricInfo(
+        "-",
+        f"Backlash impacts (gap -> contact transitions of every spring with backlash), {_W}.",
+    ),
+    "n_backlash_crossings": MetricInfo(
+        "-", f"Complete traversals of a backlash gap (changes of the contact side), {_W}."
+    ),
+    "final_vehicle_speed_kmh": MetricInfo("km/h", "Vehicle speed at the end of the run."),
+}
+
+#: the keys of :func:`engagement_metrics`, always all present (the keys of :data:`METRICS`)
+METRIC_KEYS: tuple[str, ...] = tuple(METRICS)
+
+
+def metric_table(keys: Iterable[str] | None = None) -> list[tuple[str, str, str]]:
+    """``(name, unit, definition)`` of every key of :data:`METRICS` (in its order), or of
+    ``keys`` in the order given; an unknown name is a :class:`KeyError` naming it."""
+    names = METRIC_KEYS if keys is None else tuple(keys)
+    unknown = [k for k in names if k not in METRICS]
+    if unknown:
+        raise KeyError(f"metric_table: not a metric: {', '.join(map(repr, unknown))}")
+    return [(k, METRICS[k].unit, METRICS[k].definition) for k in names]
+
+
+def metrics_markdown(keys: Iterable[str] | None = None) -> str:
+    """The Markdown table ``| key | unit | definition |`` of :func:`metric_table` (the one in the
+    documentation's figures-of-merit section)."""
+    lines = ["| key | unit | definition |", "|---|---|---|"]
+    for k, unit, text in metric_table(keys):
+        cells = (f"`{k}`", unit or " ", text)
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def _mode(res: SimulationResult, i: int) -> Mode:
@@ -169,11 +335,12 @@ def _coupling_index(model: Model, name: str) -> int | None:
     return None
 
 
-def _backlash_counts(res: SimulationResult) -> tuple[int, int]:
-    """(impacts, crossings) summed over every spring with backlash.
+def _backlash_counts(res: SimulationResult, t0: float, t1: float) -> tuple[int, int]:
+    """(impacts, crossings) in ``[t0, t1]`` [s], summed over every spring with backlash.
 
     An impact is a ``gap -> contact`` transition; a crossing a traversal of the whole gap, i.e. a
-    change of the contact side (``contact-`` ... ``contact+`` or back).
+    change of the contact side (``contact-`` ... ``contact+`` or back), counted at the sample
+    where the new side is reached.
     """
     impacts = 0
     crossings = 0
@@ -181,13 +348,18 @@ def _backlash_counts(res: SimulationResult) -> tuple[int, int]:
         if ti.region_names is None:
             continue
         for ev in res.events:
-            if ev.element == ti.name and ev.from_mode == "gap" and ev.to_mode != "gap":
+            if (
+                ev.element == ti.name
+                and ev.from_mode == "gap"
+                and ev.to_mode != "gap"
+                and t0 <= ev.t <= t1
+            ):
                 impacts += 1
         side = 0
-        for name in res.mode_series(ti.name):
+        for tk, name in zip(res.t, res.mode_series(ti.name), strict=True):
             s = 1 if name.endswith("+") else -1 if name.endswith("-") else 0
             if s != 0:
-                if side != 0 and s != side:
+                if side != 0 and s != side and t0 <= tk <= t1:
                     crossings += 1
                 side = s
     return impacts, crossings
@@ -279,92 +451,19 @@ def engagement_metrics(
 ) -> dict[str, Any]:
     """Figures of merit of run ``res`` of drivetrain ``dt``; a flat, JSON-ready dict.
 
-    Keys (:data:`METRIC_KEYS`, always all present; None where undefined):
+    The keys are those of :data:`METRICS`, always all present and in its order, each with the
+    definition given there (None where undefined); see the module docstring for the windows.
 
-    ``model``, ``gear``
-        ``dt.kind`` (``"full"`` / ``"reduced"``) and the engaged gear (None without ``dt``).
-    ``status``, ``t_end_s``, ``n_samples``, ``n_events``
-        Simulation status, final time [s], number of samples and of events (mode changes of
-        the model's elements and, in closed loop, of the controller's blocks).
-    ``inconsistent_decisions``
-        Mode decisions in which no stuck/slip combination was consistent (the least inconsistent
-        was taken) or guards still fired after the re-checks; 0 in a sound run (``notes`` says
-        so otherwise).
-    ``lockup_time_s``
-        Lock-up time [s]: the start of the first stuck phase of the clutch that lasts at least
-        :data:`LOCKUP_MIN_DURATION_S` = 0.2 s (``res.lockup_time(clutch)``); None if there is none
-        (and ``notes`` says so).
-    ``start_s``, ``engagement_time_s``
-        The start command [s] (argument ``start``: the controller's start time, or the start of the
-        pedal release; default the start of the run) and engagement time = lock-up - start [s].
-    ``n_lock_events``
-        Number of times the clutch entered its stuck mode (re-slips counted: 1 for a clean
-        engagement).
-    ``clutch_energy_J``
-        Energy [J] dissipated by the clutch friction, ``integral of tau_13 * slip dt`` from the
-        start of the run to lock-up (to the end of the run without lock-up).
-    ``work_in_J``, ``energy_residual_rel``
-        Work supplied by the sources [J]; relative energy-balance residual [-]
-        (``res.energy_residual_rel``). None if energies were not integrated.
-    ``final_vehicle_speed_kmh``
-        Vehicle speed at the end [km/h].
-    ``max_vehicle_accel_m_s2``
-        Largest ``|vehicle acceleration|`` [m/s^2].
-    ``max_vehicle_jerk_m_s3``
-        Largest ``|jerk|`` [m/s^3]: difference quotient of the acceleration (from the model rhs) over
-        the sample intervals, inside modes (see the module docstring; comfort target < 10 m/s^3).
-    ``lurch_m_s2``
-        Jump of the vehicle acceleration at lock-up [m/s^2], after minus before; None without
-        lock-up. With a compliant driveline (both models here) the vehicle is connected to the
-        clutch through springs, so its acceleration is continuous and this is ~0; the lock-up
-        shock then shows as jerk and shuffle.
-    ``lockup_slip_accel_rad_s2``
-        Slip acceleration ``d(omega_in - r omega_out)/dt`` [rad/s^2] just before lock-up (the
-        "no-lurch" condition asks for 0); None without lock-up.
-    ``min_engine_speed_rpm``, ``max_engine_speed_rpm``
-        Lowest engine speed (stall margin) and highest (flare) [rpm].
-    ``engine_stalled``
-        True if the engine's ground friction is ever in its standstill mode.
-    ``peak_axle_torque_Nm``
-        Largest ``|half-shaft torque|`` [N m] in the wheel frame (``axle`` coupling torque, secondary
-        frame, times its ratio D_c); None for the reduced model, which has no axle.
-    ``peak_shaft_torque_Nm``
-        Largest ``|driveline torque|`` [N m] in the primary-shaft frame, comparable between models:
-        the gear-mesh coupling ``backlash`` of the full model, the lumped shaft ``backlash``
-        (stiffness h_t) of the reduced model. Wheel-frame equivalent: times ``dt.tau_t``.
-    ``n_backlash_impacts``, ``n_backlash_crossings``
-        Gap -> contact transitions and complete traversals of the gap (contact side changes).
-
-    Engagement-window figures (the window ``[start, lock-up + 1 s]``; without lock-up, to the end
-    of the run). Signals are resampled uniformly at :data:`RESAMPLE_HZ`:
-
-    ``engine_speed_max_rpm``, ``engine_speed_min_rpm``
-        Highest (flare) and lowest (stall margin) engine speed [rpm] over the window.
-    ``tracking_rms_rpm``
-        RMS of ``omega_r - omega_1`` [rpm] over ``[start + 0.3 s, lock-up]``; needs
-        ``reference`` (the controller's omega_r signal [rad/s]), else None.
-    ``torque_match_rms_Nm``
-        RMS of ``tau_13 - C_1`` [N m] (clutch torque minus engine torque: the paper's claim
-        tau_13 ~ C_1 while slipping) over ``[start + 0.3 s, lock-up]``.
-    ``lurch_rad_s2``
-        Jump of the acceleration of the clutch's driven body at lock-up [rad/s^2], after minus
-        before: the primary shaft (omega_3) in the reduced model; in the full model the clutch
-        disc (omega_2), the body the clutch locks to (the primary shaft sits behind the damper
-        spring there and its acceleration has no jump).
-    ``accel_p2p_after_lock_m_s2``
-        Peak-to-peak vehicle acceleration [m/s^2] over ``[lock-up, lock-up + 1 s]``.
-    ``jerk_max_m_s3``, ``jerk_rms_m_s3``
-        Largest ``|jerk|`` and RMS jerk [m/s^3] over the window, from the vehicle acceleration
-        low-pass filtered at 10 Hz (second-order Butterworth, zero phase; :func:`filtered_jerk`).
-    ``notes``
-        Plain statements about the run (no lock-up within the horizon, engine stall, ...).
-
-    ``dt`` may be None for a model not built by :class:`~drivetrain_ctrl.plant.drivetrain.Drivetrain`
-    (e.g. a :func:`~drivetrain_ctrl.plant.chain.two_body_clutch` test chain). ``vehicle`` and
-    ``engine`` name the speed states used for the vehicle and engine figures (for a rotational
-    ``vehicle`` state the acceleration figures are in rad/s^2, rad/s^3 and the final speed is
-    None); ``clutch`` names the clutch friction element. Figures whose state or element does not
-    exist are None.
+    ``start``: the start command [s] (the controller's start time, or the start of the pedal
+    release; default the start of the run), where the engagement window begins. ``reference``:
+    the controller's engine-speed reference omega_r (a signal of t [s] in rad/s), for
+    ``tracking_rms_rpm``. ``dt`` may be None for a model not built by
+    :class:`~drivetrain_ctrl.plant.drivetrain.Drivetrain` (e.g. a
+    :func:`~drivetrain_ctrl.plant.chain.two_body_clutch` test chain). ``vehicle`` and ``engine``
+    name the speed states used for the vehicle and engine figures, ``clutch`` the clutch friction
+    element; figures whose state or element does not exist are None, and so are the vehicle
+    figures for a ``vehicle`` state that is not a translational speed in m/s (their names carry
+    m/s units).
     """
     if start is not None and not is_finite_real(start):
         raise ValueError(f"engagement_metrics: start = {start!r} [s]: must be a finite number")
@@ -397,160 +496,136 @@ def engagement_metrics(
     out["model"] = dt.kind if dt is not None else None
     out["gear"] = int(dt.gear) if dt is not None else None
     out["status"] = res.status
-    out["t_end_s"] = float(res.t[-1])
-    out["n_samples"] = int(res.t.shape[0])
+    t = res.t
+    t_final = float(t[-1])
+    out["t_end_s"] = t_final
+    out["n_samples"] = int(t.shape[0])
     out["n_events"] = len(res.events)
     out["inconsistent_decisions"] = int(res.stats.get("inconsistent_decisions", 0))
-
-    # clutch: lock-up, energy, slip acceleration
-    fc = _friction_coupling(model, clutch)
-    t_lock: float | None = None
-    if fc is not None:
-        t_lock = res.lockup_time(clutch, min_duration=LOCKUP_MIN_DURATION_S)
-        out["lockup_time_s"] = t_lock
-        out["n_lock_events"] = len(res.stuck_phases(clutch))
-        if res.dissipated is not None:
-            j = model.power_names().index(clutch)
-            k_end = -1
-            if t_lock is not None:
-                k_end = int(np.searchsorted(res.t, t_lock, side="right")) - 1
-            out["clutch_energy_J"] = float(res.dissipated[k_end, j])
     if res.work_in is not None and res.dissipated is not None:
         out["work_in_J"] = float(res.work_in[-1])
         out["energy_residual_rel"] = res.energy_residual_rel
-
-    # accelerations (only if something needs them)
-    need_acc = vehicle in names or (fc is not None and t_lock is not None)
-    i_lock: int | None = None
-    right: F64 | None = None
-    left: F64 | None = None
-    if t_lock is not None and fc is not None:
-        # the sample recorded just after the lock-up event (several samples may share its time)
-        col = res.fm[:, fc[0]]
-        for i in range(int(np.searchsorted(res.t, t_lock, side="left")), res.t.shape[0]):
-            if res.t[i] != t_lock:
-                break
-            if i > 0 and col[i] == 0 and col[i - 1] != 0:
-                i_lock = i
-                break
-    if need_acc:
-        right, left = state_accelerations(res)
-        if vehicle in names:
-            iv = names.index(vehicle)
-            out["max_vehicle_accel_m_s2"] = _max_abs(right[:, iv])
-            out["max_vehicle_jerk_m_s3"] = _max_abs(jerk(res.t, right[:, iv], left[:, iv]))
-            if i_lock is not None:
-                out["lurch_m_s2"] = float(right[i_lock, iv] - left[i_lock, iv])
-        if fc is not None and i_lock is not None:
-            c = fc[1]
-            r = float(model.data.ratio[c])
-            out["lockup_slip_accel_rad_s2"] = float(left[i_lock, c] - r * left[i_lock, c + 1])
-
-    if vehicle in names:
-        v_end = float(res.state(vehicle)[-1])
-        if model.state_units[names.index(vehicle)] == "m/s":
-            out["final_vehicle_speed_kmh"] = float(m_s_to_kmh(v_end))
-
-    if engine in names:
-        w = res.state(engine)
-        out["min_engine_speed_rpm"] = float(rad_s_to_rpm(float(np.min(w))))
-        out["max_engine_speed_rpm"] = float(rad_s_to_rpm(float(np.max(w))))
-        stalled = False
-        body = engine.removeprefix("omega_")
-        for f, fi in enumerate(model.frictions):
-            if fi.kind == "ground" and model.chain.bodies[fi.index].name == body:
-                stalled = bool(np.any(res.fm[:, f] == 0))
-        out["engine_stalled"] = stalled
-
-    # driveline torques
-    c_axle = _coupling_index(model, "axle")
-    c_shaft = _coupling_index(model, "backlash")
-    if c_axle is not None or c_shaft is not None:
-        T = res.coupling_torques()
-        if c_axle is not None:
-            ratio = float(model.data.ratio[c_axle])
-            out["peak_axle_torque_Nm"] = float(np.max(np.abs(T[:, c_axle]))) * ratio
-        if c_shaft is not None:
-            out["peak_shaft_torque_Nm"] = float(np.max(np.abs(T[:, c_shaft])))
-
-    _engagement_window(
-        res, out, model, fc, t_lock, i_lock, vehicle, engine, start, reference, right, left
-    )
-    impacts, crossings = _backlash_counts(res)
-    out["n_backlash_impacts"] = impacts
-    out["n_backlash_crossings"] = crossings
-    result: dict[str, Any] = json_ready(out)
-    return result
-
-
-def _engagement_window(
-    res: SimulationResult,
-    out: dict[str, Any],
-    model: Model,
-    fc: tuple[int, int] | None,
-    t_lock: float | None,
-    i_lock: int | None,
-    vehicle: str,
-    engine: str,
-    start: float | None,
-    reference: Any,
-    right: F64 | None,
-    left: F64 | None,
-) -> None:
-    """The engagement-window figures of :func:`engagement_metrics` into ``out``; ``right``,
-    ``left``: the :func:`state_accelerations` of ``res`` (None if they were not needed)."""
-    names = model.state_names
-    t = res.t
     t_start = float(t[0]) if start is None else float(start)
     out["start_s"] = t_start
     notes: list[str] = []
-    t_final = float(t[-1])
-    always_stuck = fc is not None and bool(np.all(res.fm[:, fc[0]] == 0))
-    if always_stuck:
-        notes.append("the clutch stayed locked throughout the run (no engagement to measure)")
-    elif fc is not None and t_lock is None:
-        notes.append(
-            f"the clutch did not lock up (no stuck phase of at least {LOCKUP_MIN_DURATION_S} s) "
-            f"within the horizon of {t_final:g} s: lockup_time_s is null"
-        )
-    if t_lock is not None:
-        out["engagement_time_s"] = t_lock - t_start
+
+    # the clutch: lock-up, the windows, the energy
+    fc = _friction_coupling(model, clutch)
+    t_lock: float | None = None
+    i_lock: int | None = None  # the sample recorded just after the lock-up event
+    if fc is not None:
+        t_lock = res.lockup_time(clutch, min_duration=LOCKUP_MIN_DURATION_S, after=t_start)
+        out["lockup_time_s"] = t_lock
+        if t_lock is not None:
+            out["engagement_time_s"] = t_lock - t_start
+            col = res.fm[:, fc[0]]  # 0: stuck
+            for i in range(int(np.searchsorted(t, t_lock, side="left")), t.shape[0]):
+                if t[i] != t_lock:
+                    break
+                if i > 0 and col[i] == 0 and col[i - 1] != 0:
+                    i_lock = i
+                    break
     t_win_end = min(t_final, t_lock + AFTER_LOCK_S) if t_lock is not None else t_final
-    t_track_end = t_lock if t_lock is not None else t_final
-    grid = np.arange(t_start, t_final, 1.0 / RESAMPLE_HZ)
-    if grid.size == 0:
-        grid = np.array([t_start])
-    if engine in names:
-        w = np.interp(grid, t, res.state(engine))
-        win = _window(grid, t_start, t_win_end)
-        if np.any(win):
-            out["engine_speed_max_rpm"] = float(rad_s_to_rpm(float(np.max(w[win]))))
-            out["engine_speed_min_rpm"] = float(rad_s_to_rpm(float(np.min(w[win]))))
-        trk = _window(grid, t_start + TRACKING_DELAY_S, t_track_end)
-        if reference is not None and np.any(trk):
-            err = np.asarray(reference(grid[trk]), dtype=float) - w[trk]
-            out["tracking_rms_rpm"] = _rms(np.asarray(rad_s_to_rpm(err), dtype=float))
-        if fc is not None and model.chain.sources and np.any(trk):
-            tau = res.coupling_torques()[:, fc[1]]
-            c1 = res.source_torques()[model.chain.sources[0].name]
-            d = np.interp(grid[trk], t, tau) - np.interp(grid[trk], t, c1)
-            out["torque_match_rms_Nm"] = _rms(d)
+    t_slip_end = t_lock if t_lock is not None else t_final
+    in_w = _window(t, t_start, t_win_end)
+    slips_in_slip_window = True  # without a clutch there is nothing to judge
+    if fc is not None:
+        f = fc[0]
+        out["n_lock_events"] = sum(
+            1 for t0, _ in res.stuck_phases(clutch) if t_start <= t0 <= t_win_end
+        )
+        slipping = res.fm[:-1, f] != 0  # the mode held on [t_k, t_k+1]
+        slips_in_slip_window = bool(
+            np.any(slipping & (t[:-1] < t_slip_end) & (t[1:] > t_start + TRACKING_DELAY_S))
+        )
+        if not np.any(slipping & (t[1:] > t_start)):
+            notes.append(
+                "the clutch stayed locked from the start to the end of the run (no engagement "
+                "to measure)"
+            )
+        elif t_lock is None:
+            notes.append(
+                f"the clutch did not lock up (no stuck phase of at least {LOCKUP_MIN_DURATION_S} "
+                f"s) within the horizon of {t_final:g} s: lockup_time_s is null"
+            )
+        if res.dissipated is not None:
+            e = res.dissipated[:, model.power_names().index(clutch)]
+            k_end = int(np.searchsorted(t, t_slip_end, side="right")) - 1
+            out["clutch_energy_J"] = float(e[k_end]) - float(np.interp(t_start, t, e))
+
+    # accelerations (only if something needs them)
+    is_vehicle = vehicle in names and model.state_units[names.index(vehicle)] == "m/s"
+    right: F64 | None = None
+    left: F64 | None = None
+    if is_vehicle or i_lock is not None:
+        right, left = state_accelerations(res)
     if fc is not None and i_lock is not None and right is not None and left is not None:
-        jb = fc[1] + 1  # the clutch coupling's driven body
+        c = fc[1]
+        r = float(model.data.ratio[c])
+        out["lockup_slip_accel_rad_s2"] = float(left[i_lock, c] - r * left[i_lock, c + 1])
+        jb = c + 1  # the clutch coupling's driven body
         out["lurch_rad_s2"] = float(right[i_lock, jb] - left[i_lock, jb])
-    if right is not None and vehicle in names and model.state_units[names.index(vehicle)] == "m/s":
-        acc = right[:, names.index(vehicle)]
+
+    if is_vehicle and right is not None and left is not None:
+        iv = names.index(vehicle)
+        out["final_vehicle_speed_kmh"] = float(m_s_to_kmh(float(res.x[-1, iv])))
+        acc_r, acc_l = right[:, iv], left[:, iv]
+        # both one-sided limits at the samples in W (the left one only inside W)
+        out["vehicle_accel_max_m_s2"] = _max_abs(
+            np.concatenate([acc_r[in_w], acc_l[in_w & (t > t_start)]])
+        )
+        if t_lock is not None:
+            first = i_lock if i_lock is not None else int(np.searchsorted(t, t_lock, "right"))
+            after = in_w & (np.arange(t.shape[0]) >= first)
+            a = np.concatenate([acc_r[after], acc_l[after & (np.arange(t.shape[0]) > first)]])
+            if a.size:
+                out["accel_p2p_after_lock_m_s2"] = float(np.max(a) - np.min(a))
         if t.shape[0] > 1:
-            g, af, jk = filtered_jerk(t, acc)
+            g, _, jk = filtered_jerk(t, acc_r)
             win = _window(g, t_start, t_win_end)
             if np.any(win):
                 out["jerk_max_m_s3"] = float(np.max(np.abs(jk[win])))
                 out["jerk_rms_m_s3"] = _rms(jk[win])
-        if t_lock is not None:
-            after = _window(grid, t_lock, t_win_end)
-            if np.any(after):
-                a = np.interp(grid[after], t, acc)
-                out["accel_p2p_after_lock_m_s2"] = float(np.max(a) - np.min(a))
+
+    grid = np.arange(t_start, t_final, 1.0 / RESAMPLE_HZ)
+    trk = _window(grid, t_start + TRACKING_DELAY_S, t_slip_end)
+    T: F64 | None = None
+    if engine in names:
+        w = res.state(engine)
+        ends = np.interp([t_start, t_win_end], t, w)
+        w_win = np.concatenate([w[in_w], ends])
+        out["engine_speed_min_rpm"] = float(rad_s_to_rpm(float(np.min(w_win))))
+        out["engine_speed_max_rpm"] = float(rad_s_to_rpm(float(np.max(w_win))))
+        stalled = False
+        body = engine.removeprefix("omega_")
+        for k, fi in enumerate(model.frictions):
+            if fi.kind == "ground" and model.chain.bodies[fi.index].name == body:
+                stalled = bool(np.any(res.fm[in_w, k] == 0))
+        out["engine_stalled"] = stalled
+        if reference is not None and slips_in_slip_window and np.any(trk):
+            err = np.asarray(reference(grid[trk]), dtype=float) - np.interp(grid[trk], t, w)
+            out["tracking_rms_rpm"] = _rms(np.asarray(rad_s_to_rpm(err), dtype=float))
+    if fc is not None and model.chain.sources and slips_in_slip_window and np.any(trk):
+        T = res.coupling_torques()
+        c1 = res.source_torques()[model.chain.sources[0].name]
+        d = np.interp(grid[trk], t, T[:, fc[1]]) - np.interp(grid[trk], t, c1)
+        out["torque_match_rms_Nm"] = _rms(d)
+
+    # driveline torques
+    c_axle = _coupling_index(model, "axle")
+    c_shaft = _coupling_index(model, "backlash")
+    if (c_axle is not None or c_shaft is not None) and np.any(in_w):
+        if T is None:
+            T = res.coupling_torques()
+        if c_axle is not None:
+            ratio = float(model.data.ratio[c_axle])
+            out["axle_torque_max_Nm"] = float(np.max(np.abs(T[in_w, c_axle]))) * ratio
+        if c_shaft is not None:
+            out["shaft_torque_max_Nm"] = float(np.max(np.abs(T[in_w, c_shaft])))
+    impacts, crossings = _backlash_counts(res, t_start, t_win_end)
+    out["n_backlash_impacts"] = impacts
+    out["n_backlash_crossings"] = crossings
+
     if out.get("engine_stalled"):
         notes.append("the engine stalled (its friction entered standstill)")
     if out["inconsistent_decisions"]:
@@ -559,3 +634,5 @@ def _engagement_window(
             "combination; the least inconsistent was taken (see simulate's warning)"
         )
     out["notes"] = notes
+    result: dict[str, Any] = json_ready(out)
+    return result

@@ -150,8 +150,37 @@ def test_demo_quick(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
             assert (d / name).is_file(), d / name
         assert f"{scenario}-reduced/overview.png" in summary
     assert not (tmp_path / "engage-ramp-full").exists()
-    assert "lock-up time [s]" in summary
-    assert str(tmp_path / "summary.md") in capsys.readouterr().out
+    console = capsys.readouterr().out
+    assert str(tmp_path / "summary.md") in console
+    # summary.md, the console and metrics.json name the same figures, with the same values
+    from drivetrain_ctrl.cli import CONSOLE_METRICS, SUMMARY_METRICS, _fmt_metric
+    from drivetrain_ctrl.sim.metrics import METRICS
+
+    rows = {}
+    for line in summary.splitlines():
+        if line.startswith("| `"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            rows[cells[0].strip("`")] = cells[1:]
+    assert tuple(rows) == SUMMARY_METRICS
+    assert set(SUMMARY_METRICS) <= set(METRICS) and set(CONSOLE_METRICS) <= set(METRICS)
+    heads = [c.strip() for c in summary.split("| metric |")[1].splitlines()[0].split("|")[:-1]]
+    for col, head in enumerate(heads):
+        label, kind = head.split(" / ")
+        m = json.loads((tmp_path / f"{label}-{kind}" / "metrics.json").read_text())
+        assert [rows[k][col] for k in SUMMARY_METRICS] == [
+            _fmt_metric(k, m[k]) for k in SUMMARY_METRICS
+        ], head
+        # the console quotes "name value" under the same names
+        ctl = f", controller {m['controller']['name']}" if m["controller"] else ""
+        head_line = f"{m['scenario']} / {kind} model ({m['parameter_set']}{ctl})"
+        block = console.split(head_line)[1].split(" model (")[0]
+        for k in CONSOLE_METRICS:
+            assert f"{k} {_fmt_metric(k, m[k])}" in " ".join(block.split()), (head, k)
+    # every name in summary.md has its definition there, from the table
+    for k in SUMMARY_METRICS:
+        assert f"- `{k}`" in summary and METRICS[k].definition in summary, k
+    for old in ("lurch_m_s2", "max_vehicle_jerk_m_s3", "max_engine_speed_rpm"):
+        assert old not in summary and old not in console
 
 
 def test_report_command_writes_the_three_files(tmp_path: Path) -> None:

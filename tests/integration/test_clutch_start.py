@@ -196,7 +196,12 @@ def test_latch_is_bumpless_and_rearms_on_reslip() -> None:
     ctl = _relsip_controller()
     res, m = _run("reduced", ctl)
     phases = res.stuck_phases("clutch")
-    assert len(phases) >= 2 and m["n_lock_events"] == len(phases)
+    assert len(phases) >= 2
+    # the lock events of the engagement window [start, lock-up + 1 s] (to the end of the run
+    # without lock-up: here each stuck phase is shorter than the 0.2 s of a lock-up)
+    lock = m["lockup_time_s"]
+    t_w = m["t_end_s"] if lock is None else lock + 1.0
+    assert m["n_lock_events"] == sum(1 for t0, _ in phases if 0.5 <= t0 <= t_w)
     cmd = res.extras["controller_command"]
     t_lock, t_slip = phases[0]
     i0 = int(np.searchsorted(res.t, t_lock))

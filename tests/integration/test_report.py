@@ -163,3 +163,21 @@ def test_report_on_a_scenario_too_short_for_the_step_responses(tmp_path):
     sc = dataclasses.replace(load_scenario("paper-start"), name="short", t_end=0.6)
     with pytest.raises(ValueError, match=r"scenario 'short': t_end = 0.6 s leaves no time"):
         build_report(controller="paper", scenario=sc, model="reduced", out=tmp_path / "r")
+
+
+def test_the_metrics_table_has_units_and_definitions(paper_report) -> None:
+    """Section 8: every key of the run's metrics, in the order of sim.metrics.METRICS, with its
+    unit and its definition from there (issue 19, item 7)."""
+    import html as html_mod
+
+    from drivetrain_ctrl.reporting.controller_report import _sections
+    from drivetrain_ctrl.sim.metrics import METRICS
+
+    ((caption, rows),) = next(t for s, _, t, _ in _sections(paper_report.data) if s == SECTIONS[7])
+    assert caption == "Engagement metrics"
+    assert rows[0] == ["metric", "value", "unit", "definition"]
+    assert [r[0] for r in rows[1:]] == list(METRICS)
+    for name, _, unit, definition in rows[1:]:
+        assert unit == (METRICS[name].unit or "-") and definition == METRICS[name].definition
+    page = (paper_report.out / "report.html").read_text(encoding="utf-8")
+    assert html_mod.escape(METRICS["torque_match_rms_Nm"].definition) in page

@@ -23,9 +23,12 @@ from drivetrain_ctrl.plant.chain import two_body_clutch
 from drivetrain_ctrl.plant.model import Model
 from drivetrain_ctrl.sim.metrics import (
     METRIC_KEYS,
+    METRICS,
     engagement_metrics,
     filtered_jerk,
     jerk,
+    metric_table,
+    metrics_markdown,
     state_accelerations,
 )
 from drivetrain_ctrl.sim.run import run_scenario
@@ -64,15 +67,19 @@ def test_lockup_time_and_clutch_energy_are_analytic() -> None:
 
 def test_lurch_slip_acceleration_and_jerk() -> None:
     k = 40.0
-    m = metrics(run(k))
-    assert m["lurch_m_s2"] == pytest.approx(T / (J1 + J2) - k / J2, rel=1e-8)
+    res = run(k)
+    m = metrics(res)
+    assert m["lurch_rad_s2"] == pytest.approx(T / (J1 + J2) - k / J2, rel=1e-8)
     assert m["lockup_slip_accel_rad_s2"] == pytest.approx((T - k) / J1 - k / J2, rel=1e-8)
-    assert m["max_vehicle_accel_m_s2"] == pytest.approx(k / J2, rel=1e-8)
+    # the vehicle figures are in m/s units: None for a rotational "vehicle" state
+    for key in ("vehicle_accel_max_m_s2", "jerk_max_m_s3", "final_vehicle_speed_kmh"):
+        assert m[key] is None, key
     # piecewise-constant accelerations: zero jerk inside modes, the jump is not a jerk
-    assert m["max_vehicle_jerk_m_s3"] == pytest.approx(0.0, abs=1e-6)
+    right, left = state_accelerations(res)
+    assert np.max(np.abs(jerk(res.t, right[:, 1], left[:, 1]))) == pytest.approx(0.0, abs=1e-6)
     # engine figures on body b1: it only decelerates while slipping, then accelerates
     w_lock = W0 + (T - k) / J1 * m["lockup_time_s"]
-    assert m["min_engine_speed_rpm"] == pytest.approx(w_lock * 30.0 / math.pi, rel=1e-8)
+    assert m["engine_speed_min_rpm"] == pytest.approx(w_lock * 30.0 / math.pi, rel=1e-8)
 
 
 def test_no_lockup_gives_none() -> None:
@@ -80,7 +87,7 @@ def test_no_lockup_gives_none() -> None:
     res = run(k, t_end=0.5)
     m = metrics(res)
     assert m["lockup_time_s"] is None
-    assert m["lurch_m_s2"] is None
+    assert m["lurch_rad_s2"] is None
     assert m["lockup_slip_accel_rad_s2"] is None
     assert m["clutch_energy_J"] == pytest.approx(
         k * (W0 * 0.5 + 0.5 * ((T - k) / J1 - k / J2) * 0.5**2), rel=1e-7
@@ -95,11 +102,11 @@ def test_keys_json_and_none_for_missing_elements() -> None:
         "model",
         "gear",
         "final_vehicle_speed_kmh",
-        "max_vehicle_jerk_m_s3",
-        "lurch_m_s2",
-        "min_engine_speed_rpm",
-        "peak_axle_torque_Nm",
-        "peak_shaft_torque_Nm",
+        "vehicle_accel_max_m_s2",
+        "jerk_max_m_s3",
+        "engine_speed_min_rpm",
+        "axle_torque_max_Nm",
+        "shaft_torque_max_Nm",
     ):
         assert m[key] is None, key
     assert m["lockup_time_s"] is not None
@@ -235,3 +242,199 @@ def test_misspelt_names_are_errors_while_absent_defaults_give_none() -> None:
     r = simulate(m, np.array([100.0, 0.0]), {"torque1": 20.0}, t_end=0.5)
     out = engagement_metrics(r)
     assert out["final_vehicle_speed_kmh"] is None and out["n_events"] == len(r.events)
+
+
+# ------------------------------------------------------------------------------------------------
+# one name, one definition (issue 19, item 7)
+# ------------------------------------------------------------------------------------------------
+
+#: the names of engagement_metrics, spelt out: renaming or adding one is a decision, and the
+#: changelog says so (users' scripts read these keys)
+NAMES = (
+    "model",
+    "gear",
+    "status",
+    "t_end_s",
+    "n_samples",
+    "n_events",
+    "inconsistent_decisions",
+    "work_in_J",
+    "energy_residual_rel",
+    "start_s",
+    "notes",
+    "lockup_time_s",
+    "engagement_time_s",
+    "n_lock_events",
+    "clutch_energy_J",
+    "lockup_slip_accel_rad_s2",
+    "lurch_rad_s2",
+    "engine_speed_min_rpm",
+    "engine_speed_max_rpm",
+    "engine_stalled",
+    "tracking_rms_rpm",
+    "torque_match_rms_Nm",
+    "vehicle_accel_max_m_s2",
+    "accel_p2p_after_lock_m_s2",
+    "jerk_max_m_s3",
+    "jerk_rms_m_s3",
+    "shaft_torque_max_Nm",
+    "axle_torque_max_Nm",
+    "n_backlash_impacts",
+    "n_backlash_crossings",
+    "final_vehicle_speed_kmh",
+)
+
+#: the unit a name's suffix stands for
+SUFFIX_UNIT = {
+    "_s": "s",
+    "_J": "J",
+    "_rpm": "rpm",
+    "_rad_s2": "rad/s^2",
+    "_m_s2": "m/s^2",
+    "_m_s3": "m/s^3",
+    "_Nm": "N m",
+    "_kmh": "km/h",
+    "_rel": "-",
+}
+
+
+@pytest.fixture(scope="module")
+def car_runs() -> dict[str, tuple]:
+    """engage-ramp and tip-in on both models: (result, drivetrain, metrics)."""
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+
+    out = {}
+    for name in ("engage-ramp", "tip-in"):
+        sc = load_scenario(name)
+        for kind in ("full", "reduced"):
+            dt = sc.drivetrain(default_params(), kind=kind)
+            res = run_scenario(sc, dt)
+            m = engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
+            out[f"{name}/{kind}"] = (res, dt, m)
+    return out
+
+
+def test_the_names_are_the_table(car_runs: dict[str, tuple]) -> None:
+    assert tuple(METRICS) == METRIC_KEYS == NAMES
+    # every key engagement_metrics returns is in the table, and every entry of the table is
+    # returned, in its order (a two-body chain and the car, with and without lock-up)
+    for m in [metrics(run(40.0)), metrics(run(10.0, t_end=0.5))] + [
+        r[2] for r in car_runs.values()
+    ]:
+        assert set(m) == set(METRICS)
+        assert tuple(m) == tuple(METRICS)
+    # the names that meant two things are gone
+    for old in (
+        "lurch_m_s2",
+        "max_vehicle_jerk_m_s3",
+        "max_engine_speed_rpm",
+        "min_engine_speed_rpm",
+        "max_vehicle_accel_m_s2",
+        "peak_axle_torque_Nm",
+        "peak_shaft_torque_Nm",
+    ):
+        assert old not in METRICS, old
+
+
+def test_one_definition_per_name_and_the_unit_in_the_name() -> None:
+    definitions = [info.definition for info in METRICS.values()]
+    assert len(set(definitions)) == len(definitions), "two names share a definition"
+    for name, info in METRICS.items():
+        assert info.kind in ("figure", "run"), name
+        assert info.definition.strip() and info.definition.endswith("."), name
+        suffix = [s for s in SUFFIX_UNIT if name.endswith(s)]
+        if info.unit in ("", "-"):
+            # a text, a flag, a list, a count: no unit suffix to contradict
+            assert info.unit == "-" or not suffix, name
+        else:
+            assert suffix and SUFFIX_UNIT[max(suffix, key=len)] == info.unit, (name, info.unit)
+    assert metric_table(["lurch_rad_s2"]) == [
+        ("lurch_rad_s2", "rad/s^2", METRICS["lurch_rad_s2"].definition)
+    ]
+    with pytest.raises(KeyError, match="lurch_m_s2"):
+        metric_table(["lurch_m_s2"])
+
+
+def test_the_documentation_shows_the_table() -> None:
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "simulation.md"
+    assert metrics_markdown() in page.read_text(encoding="utf-8"), (
+        "docs/simulation.md: paste the output of "
+        "drivetrain_ctrl.sim.metrics.metrics_markdown() into the figures-of-merit section"
+    )
+
+
+def test_nothing_engages_on_tip_in(car_runs: dict[str, tuple]) -> None:
+    """tip-in starts and stays locked: the figures of an engagement are None, not numbers."""
+    for kind in ("full", "reduced"):
+        res, _, m = car_runs[f"tip-in/{kind}"]
+        assert np.all(res.fm[:, res.model.friction_index("clutch")] == 0)  # stuck throughout
+        for key in (
+            "torque_match_rms_Nm",
+            "tracking_rms_rpm",
+            "lockup_time_s",
+            "engagement_time_s",
+            "lurch_rad_s2",
+            "lockup_slip_accel_rad_s2",
+            "accel_p2p_after_lock_m_s2",
+        ):
+            assert m[key] is None, (kind, key)
+        assert m["clutch_energy_J"] == 0.0 and m["n_lock_events"] == 0
+        assert any("no engagement" in n for n in m["notes"])
+        # the figures of the window (here the whole run) are numbers
+        assert m["jerk_max_m_s3"] > 0 and m["engine_speed_max_rpm"] > m["engine_speed_min_rpm"]
+        # ... and the extremes are those of the samples: the window is the whole run here
+        w = res.state("omega_engine") * 30.0 / math.pi
+        assert m["engine_speed_max_rpm"] == pytest.approx(np.max(w), rel=1e-8)
+        assert m["engine_speed_min_rpm"] == pytest.approx(np.min(w), rel=1e-8)
+
+
+def test_torque_match_is_a_number_when_the_clutch_slips(car_runs: dict[str, tuple]) -> None:
+    for kind in ("full", "reduced"):
+        m = car_runs[f"engage-ramp/{kind}"][2]
+        assert m["torque_match_rms_Nm"] > 0
+        assert m["tracking_rms_rpm"] is None  # open loop: no reference
+
+
+def test_lurch_is_the_jump_of_the_driven_acceleration_on_the_trajectory(
+    car_runs: dict[str, tuple],
+) -> None:
+    """lurch_rad_s2 against a plain computation on the recorded speeds: the one-sided slopes of
+    the driven body's speed at lock-up (a cubic through the lock-up sample and the three samples
+    before it, and one through it and the three after), after minus before."""
+    for kind, body in (("full", "omega_disc"), ("reduced", "omega_primary")):
+        res, _, m = car_runs[f"engage-ramp/{kind}"]
+        t = res.t
+        w = res.state(body)
+        stuck = np.asarray(res.mode_series("clutch")) == "stuck"
+        i0 = int(np.flatnonzero(stuck[1:] & ~stuck[:-1])[0]) + 1  # first stuck sample
+        t_lock = t[i0]
+        assert m["lockup_time_s"] == pytest.approx(t_lock, rel=1e-8)
+        before = np.flatnonzero(t < t_lock)[-3:]
+        after = np.flatnonzero(t > t_lock)[:3]
+        slope_before = np.polyfit(t[[*before, i0]] - t_lock, w[[*before, i0]], 3)[-2]
+        slope_after = np.polyfit(t[[i0, *after]] - t_lock, w[[i0, *after]], 3)[-2]
+        lurch = slope_after - slope_before
+        assert abs(lurch) > 100.0, (kind, lurch)  # a real jump, not round-off
+        assert m["lurch_rad_s2"] == pytest.approx(lurch, rel=1e-2), kind
+        # the vehicle sits behind the driveline's springs: its acceleration does not jump (the
+        # reason the vehicle-acceleration "lurch" was always 0 and is no figure)
+        right, left = state_accelerations(res)
+        iv = res.model.state_names.index("v_vehicle")
+        assert abs(right[i0, iv] - left[i0, iv]) < 1e-9 * max(1.0, abs(right[i0, iv]))
+
+
+def test_the_readme_docs_and_analyses_quote_only_names_of_the_table() -> None:
+    """``m["..."]`` (a metrics dict) in the README, the documentation and the analyses: every
+    name with a unit suffix is a key of the table (an old name would not be)."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    files = [root / "README.md", *(root / "docs").glob("*.md"), *(root / "analyses").glob("*.py")]
+    pattern = re.compile(r"\b[mr]\[[\"'](\w+_(?:s|J|rpm|rad_s2|m_s2|m_s3|Nm|kmh|rel))[\"']\]")
+    quoted = {(f.name, k) for f in files for k in pattern.findall(f.read_text(encoding="utf-8"))}
+    assert {k for _, k in quoted} >= {"lockup_time_s", "jerk_max_m_s3", "tracking_rms_rpm"}
+    assert {(f, k) for f, k in quoted if k not in METRICS} == set()
