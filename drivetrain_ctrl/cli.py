@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import textwrap
@@ -189,16 +188,24 @@ def run_simulation(
         if plots:
             from .reporting.figures import plot_energy, plot_simulation  # matplotlib on demand
 
-            plot_simulation(res, out / "overview.png")
+            closed = spec is not None
+            plot_simulation(
+                res,
+                out / "overview.png",
+                scenario=scenario.name,
+                controller=spec.name if spec is not None else None,
+                reference=scenario.reference if closed else None,
+                control_start=scenario.start_time if closed else None,
+            )
             plot_energy(res, out / "energy.png")
             files += SIMULATION_FILES[4:]
         timing = {
-            "wall_time_s": float(res.stats.get("wall_time_s", math.nan)),
+            "wall_time_s": float(res.stats["wall_time_s"]),
             "kernel_load_s": load_s,
             "total_wall_time_s": time.perf_counter() - tic,
-            "steps": int(res.stats.get("steps", 0)),
-            "rejected_steps": int(res.stats.get("rejected", 0)),
-            "nfev": int(res.stats.get("nfev", 0)),
+            "steps": int(res.stats["steps"]),
+            "rejected_steps": int(res.stats["rejected"]),
+            "nfev": int(res.stats["nfev"]),
             "n_samples": int(res.t.shape[0]),
         }
         _write_json(out / "timing.json", timing)
@@ -450,6 +457,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
         raise RunError(f"report: {exc}") from None
     for f in rep.files:
         print(f)
+    slip = rep.data["modes"]["slip"][rep.data["inputs"]["controller_name"]]
+    print(f"judder threshold: {slip['judder']['summary']}")
     return 0
 
 

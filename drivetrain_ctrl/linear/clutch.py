@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from ..control.blocks import Controller, actuator_tf, require_controller
 from ..core.serialize import json_ready
-from ..core.validate import finite_float, positive_float
+from ..core.validate import finite_float, is_finite_real, positive_float
 from .linearisation import ShuffleMode, _oscillatory, _siso, _tf_min, linearisation_parts, linearise
 from .operating_point import OperatingPoint, StuckMargin, require_op
 
@@ -264,6 +264,21 @@ def slip_mode_poles(
     return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
 
 
+def _measured_plant(sys: control.StateSpace, controller: Controller) -> control.StateSpace:
+    """x_c -> the measured part of the controller's error (every state of ``sys`` kept)."""
+    Cm = np.zeros((1, sys.nstates))
+    Dm = np.zeros((1, 1))
+    for coef, src in controller.measurement:
+        if src == "ref":
+            continue
+        if src not in sys.output_labels:
+            raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
+        o = list(sys.output_labels).index(src)
+        Cm += coef * sys.C[[o], :]
+        Dm += coef * sys.D[[o], :]
+    return control.ss(sys.A, sys.B, Cm, Dm)
+
+
 def _slip_mode_poles_of(
     sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
 ) -> NDArray[np.complex128]:
@@ -272,15 +287,7 @@ def _slip_mode_poles_of(
         return np.asarray(np.linalg.eigvals(sys.A), dtype=complex)
     if controller.is_discrete:
         raise ValueError("slip_mode_poles: a discrete controller; use clutch_loop(...).closed_loop")
-    Cm = np.zeros((1, sys.nstates))
-    Dm = np.zeros((1, 1))
-    for coef, src in controller.measurement:
-        if src == "ref":
-            continue
-        o = list(sys.output_labels).index(src)
-        Cm += coef * sys.C[[o], :]
-        Dm += coef * sys.D[[o], :]
-    plant_e = control.ss(sys.A, sys.B, Cm, Dm)  # x_c -> measured part of the error
+    plant_e = _measured_plant(sys, controller)  # x_c -> measured part of the error
     open_ss = control.ss(controller.lti) * _error_chain(controller, op) * plant_e
     # open_ss maps the error back to the controller input with the sign of the loop: close it
     cl = control.feedback(open_ss, 1, sign=-1)
@@ -528,4 +535,260 @@ def _judder_threshold(op: OperatingPoint, es: EngineSide, Lf: Any) -> JudderThre
         b1_eff=b1,
         engine_factor=kappa,
         k13=es.k13,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# the judder threshold on any model: the first crossing of the re-linearised loop's poles
+# ---------------------------------------------------------------------------------------------
+
+#: relative tolerance of :func:`judder_crossing`: the crossing is located to within
+#: ``JUDDER_RTOL * |mu'_crit|`` [s/rad]
+JUDDER_RTOL: float = 1e-6
+
+#: the search of :func:`judder_crossing`: from ``-JUDDER_FIRST_STEP`` [s/rad] outward by the factor
+#: ``JUDDER_GRID_RATIO`` down to ``-JUDDER_SEARCH_LIMIT`` [s/rad]
+JUDDER_FIRST_STEP: float = 1e-7
+JUDDER_GRID_RATIO: float = 1.5
+JUDDER_SEARCH_LIMIT: float = 1.0
+
+#: a pole with ``|Re p| <= JUDDER_BOUNDARY_TOL * max(1, |p|)`` [1/s] counts as on the stability
+#: boundary (not asymptotically stable)
+JUDDER_BOUNDARY_TOL: float = 1e-9
+
+
+@dataclass(frozen=True)
+class JudderCrossing:
+    """The judder threshold of a slip point on any model (:func:`judder_crossing`): the first
+    friction slope mu' [s/rad] (of the ratio mu/mu0), going from 0 towards a falling friction
+    characteristic, at which a pole of the re-linearised slip mode (the plant with the pedal held,
+    or the closed loop of the controller) leaves the open left half plane (a sampled loop: the open
+    unit disc).
+
+    ``mu_slope_crit`` [s/rad]: the middle of the final bracket ``(stable_side, unstable_side)``
+    (the poles at ``stable_side`` are stable, at ``unstable_side`` one is not), so the crossing lies
+    within ``tolerance`` [s/rad] of it; ``c_crit = k13 mu_slope_crit`` [N m s/rad] the torque slope;
+    ``crossing_pole`` [1/s] the rightmost pole at ``unstable_side`` (a sampled loop's ``z`` mapped
+    by ``ln(z)/dt``) and ``frequency_hz`` its frequency ``|Im p|/2pi`` (0: a real pole crosses);
+    ``frequency_note`` says where a sampled loop's frequency comes from. ``spectral_abscissa_at_zero``
+    [1/s] the largest real part at mu' = 0. ``searched`` the interval of mu' [s/rad] searched,
+    ``evaluations`` the number of pole computations. When there is no threshold,
+    ``mu_slope_crit``, ``c_crit``, the bracket and the pole are None and ``reason`` says why.
+    ``controller`` names the controller (None: pedal held); ``dt`` [s] the sample period of a
+    sampled loop (None: continuous)."""
+
+    mu_slope_crit: float | None
+    c_crit: float | None
+    tolerance: float | None
+    stable_side: float | None
+    unstable_side: float | None
+    crossing_pole: complex | None
+    frequency_hz: float | None
+    frequency_note: str
+    k13: float
+    spectral_abscissa_at_zero: float
+    searched: tuple[float, float]
+    evaluations: int
+    controller: str | None
+    dt: float | None
+    reason: str | None
+
+    @property
+    def available(self) -> bool:
+        """Whether a threshold was found (else see ``reason``)."""
+        return self.mu_slope_crit is not None
+
+    def summary(self) -> str:
+        """One line: the threshold with its tolerance and mode, or ``not available: <reason>``."""
+        if self.mu_slope_crit is None:
+            return f"not available: {self.reason}"
+        assert self.c_crit is not None and self.tolerance is not None
+        mode = (
+            f"a {self.frequency_hz:.4g} Hz mode"
+            if self.frequency_hz
+            else "a real pole (no oscillation)"
+        )
+        return (
+            f"mu' = {self.mu_slope_crit:.6g} s/rad (+-{self.tolerance:.2g}; c = k13 mu' = "
+            f"{self.c_crit:.6g} N m s/rad): {mode} crosses"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        p = self.crossing_pole
+        d["crossing_pole"] = None if p is None else [p.real, p.imag]
+        d["searched"] = list(self.searched)
+        return json_ready(d)
+
+
+def _sampled_loop_poles(
+    sys: control.StateSpace, op: OperatingPoint, controller: Controller
+) -> NDArray[np.complex128]:
+    """Closed-loop poles ``z`` of a sampled ``controller`` around the plant ``sys`` linearised at
+    ``op`` (input ``x_c``): the plant with the error chain ZOH-sampled, ``z^-d`` for the delay, as
+    :func:`clutch_loop` builds it; every plant state kept."""
+    P = _measured_plant(sys, controller) * _error_chain(controller, op)
+    Ts = float(controller.lti.dt)
+    Pd = control.sample_system(P, Ts, method="zoh")
+    if controller.delay_samples:
+        zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
+        Pd = Pd * control.ss(zd)
+    cl = control.feedback(control.ss(controller.lti) * Pd, 1)
+    return np.asarray(np.linalg.eigvals(cl.A), dtype=complex)
+
+
+def judder_crossing(
+    op: OperatingPoint,
+    controller: Controller | None = None,
+    *,
+    rtol: float = JUDDER_RTOL,
+    search_limit: float = JUDDER_SEARCH_LIMIT,
+) -> JudderCrossing:
+    """The judder threshold of the slip point ``op`` on any model, located numerically.
+
+    The slip mode is re-linearised with the clutch friction slope mu' [s/rad] overridden
+    (:func:`linearise`'s ``mu_slope``), and its poles computed: the plant alone (``controller``
+    None, pedal held), or closed by a continuous controller (every driveline mode included,
+    :func:`slip_mode_poles`) or a sampled one (ZOH plant, delay; the poles ``z``, unstable outside
+    the unit circle). Starting from mu' = 0 the search steps towards a falling friction
+    characteristic on the geometric grid ``-JUDDER_FIRST_STEP * JUDDER_GRID_RATIO^k`` down to
+    ``-search_limit``; the first grid value with an unstable pole and the stable value before it
+    bracket the crossing, which bisection narrows to ``rtol * |mu'|`` (:class:`JudderCrossing`:
+    the bracket, its middle and half-width, the crossing pole and its frequency). A pole within
+    ``JUDDER_BOUNDARY_TOL`` of the boundary counts as unstable. An unstable window narrower than
+    one grid step before the first unstable grid value would be missed.
+
+    No threshold (``mu_slope_crit`` None, with ``reason``): the slip mode is not stable at mu' = 0,
+    or it stays stable down to ``-search_limit``. On the reduced model the result agrees with the
+    closed form :func:`judder_threshold` (which approximates the shuffle crossing).
+    """
+    _require_slip(op, "judder_crossing")
+    require_controller(controller, "judder_crossing", optional=True)
+    if not (is_finite_real(rtol) and 0 < rtol < 0.1):
+        raise ValueError(f"rtol = {rtol!r}: must be a number in (0, 0.1)")
+    if not (is_finite_real(search_limit) and search_limit > JUDDER_FIRST_STEP):
+        raise ValueError(f"search_limit = {search_limit!r}: must be > {JUDDER_FIRST_STEP} [s/rad]")
+    disc = controller is not None and controller.is_discrete
+    dt = float(controller.lti.dt) if (controller is not None and disc) else None
+    k13 = engine_side(op).k13
+    count = 0
+
+    def poles(mu: float) -> NDArray[np.complex128]:
+        """Closed-loop poles at mu' = ``mu`` in the s-plane (a sampled loop's mapped by ln z/dt)."""
+        nonlocal count
+        count += 1
+        sys = linearise(op, inputs=("x_c",), mu_slope=mu)
+        if controller is not None and disc:
+            z = _sampled_loop_poles(sys, op, controller)
+            z = z[np.abs(z) > 0.0]  # z = 0 (a delay, a deadbeat pole) is deep inside
+            assert dt is not None
+            return np.asarray(np.log(z) / dt, dtype=complex)
+        return _slip_mode_poles_of(sys, op, controller)
+
+    def unstable(p: NDArray[np.complex128]) -> bool:
+        return bool(np.any(p.real >= -JUDDER_BOUNDARY_TOL * np.maximum(1.0, np.abs(p))))
+
+    def rightmost(p: NDArray[np.complex128]) -> complex:
+        return complex(p[int(np.argmax(p.real))])
+
+    name = None if controller is None else controller.name
+    p0 = poles(0.0)
+    a0 = float(np.max(p0.real)) if p0.size else -math.inf
+    none: dict[str, Any] = dict(
+        mu_slope_crit=None,
+        c_crit=None,
+        tolerance=None,
+        stable_side=None,
+        unstable_side=None,
+        crossing_pole=None,
+        frequency_hz=None,
+        frequency_note="",
+        k13=k13,
+        spectral_abscissa_at_zero=a0,
+        searched=(-float(search_limit), 0.0),
+        controller=name,
+        dt=dt,
+    )
+    if unstable(p0):
+        q = rightmost(p0)
+        return JudderCrossing(
+            **none,
+            evaluations=count,
+            reason=(
+                "the slip mode is not stable with constant friction (mu' = 0): pole "
+                f"{q.real:.4g}{q.imag:+.4g}j 1/s ({abs(q.imag) / (2 * math.pi):.4g} Hz), so there "
+                "is no threshold to cross"
+            ),
+        )
+    a, b = 0.0, None
+    v = -JUDDER_FIRST_STEP
+    while v >= -search_limit * (1 + 1e-12):
+        if unstable(poles(v)):
+            b = v
+            break
+        a = v
+        v *= JUDDER_GRID_RATIO
+    if b is None:
+        return JudderCrossing(
+            **none,
+            evaluations=count,
+            reason=(
+                f"the slip mode stays stable for every mu' in [{-search_limit:g}, 0] s/rad "
+                "(searched to that friction slope)"
+            ),
+        )
+    # bisection: a stable, b unstable
+    while abs(b - a) > 2 * rtol * abs(b):
+        m = 0.5 * (a + b)
+        if unstable(poles(m)):
+            b = m
+        else:
+            a = m
+    pb = poles(b)
+    q = rightmost(pb)
+    freq = abs(q.imag) / (2 * math.pi)
+    note = "the crossing closed-loop pole" if controller is not None else "the crossing plant pole"
+    if dt is not None:
+        freq, note = _unaliased_frequency(op, controller, b, q, dt)
+    mid = 0.5 * (a + b)
+    return JudderCrossing(
+        mu_slope_crit=mid,
+        c_crit=k13 * mid,
+        tolerance=0.5 * abs(b - a),
+        stable_side=a,
+        unstable_side=b,
+        crossing_pole=q,
+        frequency_hz=freq,
+        frequency_note=note,
+        k13=k13,
+        spectral_abscissa_at_zero=a0,
+        searched=(-float(search_limit), 0.0),
+        evaluations=count,
+        controller=name,
+        dt=dt,
+        reason=None,
+    )
+
+
+def _unaliased_frequency(
+    op: OperatingPoint, controller: Any, mu: float, q: complex, dt: float
+) -> tuple[float, str]:
+    """Frequency [Hz] of a sampled loop's crossing pole ``q = ln(z)/dt``: ``|Im q|/2pi`` is only
+    known up to multiples of the sample rate; when a pole ``lambda`` of the continuous plant at
+    mu' = ``mu`` maps onto it (``exp(lambda dt)`` nearest to ``z``, within 1 %), that mode's
+    frequency is reported."""
+    z = complex(np.exp(q * dt))
+    lam = np.linalg.eigvals(np.asarray(linearise(op, inputs=("x_c",), mu_slope=mu).A))
+    if lam.size:
+        zl = np.exp(lam * dt)
+        k = int(np.argmin(np.abs(zl - z)))
+        if abs(zl[k] - z) <= 0.01 * max(abs(z), 1.0):
+            f = abs(lam[k].imag) / (2 * math.pi)
+            return f, (
+                "the plant mode exp(lambda dt) nearest to the crossing closed-loop pole z"
+                + (" (above the sampled loop's Nyquist frequency)" if f > 0.5 / dt else "")
+            )
+    return abs(q.imag) / (2 * math.pi), (
+        f"|Im ln(z)|/(2 pi dt) of the crossing closed-loop pole (a sampled loop knows frequencies "
+        f"up to multiples of its sample rate {1 / dt:g} Hz)"
     )

@@ -484,12 +484,28 @@ def root_locus(
 # ---------------------------------------------------------------------------------------------
 
 
+#: an open- or closed-loop pole lies on the stability boundary (an integrator, an undamped mode) when
+#: ``|Re p| <= NYQUIST_BOUNDARY_TOL * max(1, |p|)`` [1/s], a sampled loop's when
+#: ``||z| - 1| <= NYQUIST_BOUNDARY_TOL``: wide enough for the round-off of a transfer function's
+#: poles (a sampled PI's integrator at ``z = 1`` among plant poles near 1 comes out ~1e-6 off)
+NYQUIST_BOUNDARY_TOL: float = 1e-5
+
+
 @dataclass(frozen=True)
 class NyquistData:
-    """Nyquist curve of ``L``: ``omega`` [rad/s], ``real``, ``imag`` of ``L(jw)`` (positive
-    frequencies), ``encirclements`` of -1 (python-control's count over the full contour),
-    ``open_loop_unstable_poles`` and the resulting number of closed-loop unstable poles
-    ``Z = N + P``."""
+    """Nyquist curve of a loop ``L`` and its count, one convention for continuous and sampled
+    loops (:func:`nyquist_data`).
+
+    ``omega`` [rad/s] (0 first), ``real``, ``imag``: ``L`` along the counting contour for
+    ``omega >= 0`` (the mirror image is the other half); ``encirclements`` N: clockwise
+    encirclements of -1; ``open_loop_unstable_poles`` P and ``closed_loop_unstable_poles``
+    ``Z = N + P``; ``boundary_poles``: open-loop poles on the stability boundary (integrators,
+    undamped modes), which the contour passes on the unstable side, so that they count as stable
+    (python-control's ``indent_direction="right"``); ``contour_shift`` [1/s]: the contour's
+    distance from the boundary (``s = shift + j omega``; sampled: ``z = exp((shift + j omega) dt)``),
+    smaller than the distance of any other open- or closed-loop pole; ``closed_loop_unstable_eig``:
+    Z counted from the closed-loop poles with the same convention (equal to Z unless the curve was
+    resolved too coarsely); ``dt`` [s] of a sampled loop (None: continuous)."""
 
     omega: tuple[float, ...]
     real: tuple[float, ...]
@@ -497,43 +513,137 @@ class NyquistData:
     encirclements: int
     open_loop_unstable_poles: int
     closed_loop_unstable_poles: int
+    boundary_poles: int = 0
+    contour_shift: float = 0.0
+    closed_loop_unstable_eig: int | None = None
+    dt: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return json_ready(dataclasses.asdict(self))
 
-    def plot(self, path: str | None = None) -> Any:
-        """The curve (and its mirror image) with the critical point -1; a matplotlib Figure
+    def plot(self, path: str | None = None, *, title: str | None = None) -> Any:
+        """The curve (and its mirror image) with the critical point -1: the whole curve with a
+        compressed radius beside a linear window around -1; a matplotlib Figure
         (:func:`drivetrain_ctrl.reporting.figures.plot_nyquist`), saved to ``path`` if given."""
         from ..reporting.figures import plot_nyquist
 
         return plot_nyquist(
             self.real,
             self.imag,
+            omega=self.omega,
             encirclements=self.encirclements,
             open_loop_unstable_poles=self.open_loop_unstable_poles,
             closed_loop_unstable_poles=self.closed_loop_unstable_poles,
+            boundary_poles=self.boundary_poles,
+            dt=self.dt,
+            title=title,
             path=path,
         )
 
 
+def _boundary_distance(
+    p: NDArray[Any], dt: float | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Signed distance of each pole from the stability boundary [1/s] (``Re p``; a sampled loop's
+    ``ln|z|/dt``, ``z = 0`` at ``-inf``) and its boundary tolerance [1/s]
+    (:data:`NYQUIST_BOUNDARY_TOL`)."""
+    p = np.asarray(p, dtype=complex).reshape(-1)
+    if not dt:
+        return p.real.astype(float), NYQUIST_BOUNDARY_TOL * np.maximum(1.0, np.abs(p))
+    r = np.abs(p)
+    d = np.full(p.shape, -np.inf)
+    nz = r > 0
+    d[nz] = np.log(r[nz]) / dt
+    return d, np.full(p.shape, NYQUIST_BOUNDARY_TOL / dt)
+
+
+def _contour_shift(
+    ol: tuple[NDArray[np.float64], NDArray[np.float64]],
+    cl: tuple[NDArray[np.float64], NDArray[np.float64]],
+) -> tuple[float, int]:
+    """The counting contour's distance from the boundary [1/s] and the number of open-loop poles
+    on the boundary: above the tolerance of every pole on the boundary, below the distance of
+    every other pole (the geometric mean of the two)."""
+    d = np.concatenate([ol[0], cl[0]])
+    tol = np.concatenate([ol[1], cl[1]])
+    on = np.abs(d) <= tol
+    lo = float(np.max(tol[on])) if np.any(on) else float(np.min(tol, initial=NYQUIST_BOUNDARY_TOL))
+    off = np.abs(d[~on & np.isfinite(d)])
+    hi = float(np.min(off)) if off.size else 1e3 * lo
+    shift = math.sqrt(lo * hi) if hi > lo else 0.5 * (lo + hi)
+    return shift, int(np.sum(np.abs(ol[0]) <= ol[1]))
+
+
+def _nyquist_contour(
+    Lt: Any, w0: F64, shift: float, dt: float | None
+) -> tuple[F64, NDArray[np.complex128]]:
+    """``L`` along ``s = shift + j omega`` (sampled: ``z = exp(s dt)``) for ``omega`` from 0 over
+    ``w0`` to infinity (the Nyquist frequency), refined until the angle of ``1 + L`` moves less
+    than 30 degrees between neighbours (or the step is below 1e-9 relative)."""
+    top = math.pi / dt if dt else None
+
+    def ev(w: F64) -> NDArray[np.complex128]:
+        s = shift + 1j * w
+        x = np.exp(s * dt) if dt else s
+        return np.asarray(Lt(x), dtype=complex).reshape(-1)
+
+    lo = min(float(w0[0]), shift) * 1e-3
+    ws = [0.0, *np.geomspace(lo, float(w0[0]), 40)[:-1], *w0]
+    if top is not None:
+        ws = [w for w in ws if w < top] + [top]
+    else:
+        ws.append(float(w0[-1]) * 1e3)
+    w = np.unique(np.asarray(ws, dtype=float))
+    h = ev(w)
+    for _ in range(40):
+        d = np.abs(np.angle((1 + h[1:]) / (1 + h[:-1])))
+        bad = np.flatnonzero((d > math.pi / 6) & (np.diff(w) > 1e-9 * np.maximum(w[1:], 1e-300)))
+        if not bad.size:
+            break
+        mids = 0.5 * (w[bad] + w[bad + 1])
+        w = np.concatenate([w, mids])
+        h = np.concatenate([h, ev(mids)])
+        order = np.argsort(w, kind="stable")
+        w, h = w[order], h[order]
+    return w, h
+
+
 def nyquist_data(L: Any, *, omega: Sequence[float] | None = None) -> NyquistData:
     """Nyquist data of the SISO loop ``L`` (python-control LTI, continuous or discrete; the same
-    checks as :func:`loop_margins`). ``omega`` [rad/s]: the frequency grid (None: automatic)."""
+    checks as :func:`loop_margins`). ``omega`` [rad/s]: the frequencies the curve is drawn at
+    (None: automatic); the count refines them where the curve turns fast.
+
+    One convention for continuous and sampled loops: open-loop poles on the stability boundary
+    (``Re p = 0``, for a sampled loop ``|z| = 1``, within :data:`NYQUIST_BOUNDARY_TOL`: an
+    integrator at ``s = 0`` or ``z = 1`` is one) are passed on the unstable side and count as
+    stable, like python-control's default ``indent_direction="right"`` for continuous loops. The
+    contour runs at ``s = shift + j omega`` (sampled: ``z = exp((shift + j omega) dt)``, a circle of
+    radius slightly above 1), so the indentation is the image of its piece near ``omega = 0``; N
+    counts the clockwise turns of ``1 + L`` about 0 along it (``omega`` from 0 to infinity or
+    the Nyquist frequency, and the mirror image), P the open-loop poles beyond the contour and
+    ``Z = N + P`` the closed-loop poles beyond it. ``closed_loop_unstable_eig`` counts them from
+    the closed-loop poles (a check of the count)."""
     _check_siso(L)
     Lt = trim_tf(L)
     dt = _dt_of(Lt)
     w = _grid(Lt, omega)
-    Lw = _freq(Lt, w)
-    # python-control's own contour (indented around imaginary-axis poles) for the count
-    resp = control.nyquist_response(Lt, warn_encirclements=False, warn_nyquist=False)
-    N = int(resp.count)
-    p = np.asarray(Lt.poles(), dtype=complex)
-    P = int(np.sum(np.abs(p) > 1.0)) if dt else int(np.sum(p.real > 0))
+    ol = _boundary_distance(Lt.poles(), dt)
+    cl = _boundary_distance(control.feedback(Lt, 1).poles(), dt)
+    shift, n_on = _contour_shift(ol, cl)
+    wc, hc = _nyquist_contour(Lt, w, shift, dt)
+    turns = np.sum(np.angle((1 + hc[1:]) / (1 + hc[:-1])))
+    N = int(round(-float(turns) / math.pi))
+    P = int(np.sum(ol[0] > shift))
+    Z_eig = int(np.sum(cl[0] > shift))
     return NyquistData(
-        omega=tuple(float(v) for v in w),
-        real=tuple(float(v) for v in Lw.real),
-        imag=tuple(float(v) for v in Lw.imag),
+        omega=tuple(float(v) for v in wc),
+        real=tuple(float(v) for v in hc.real),
+        imag=tuple(float(v) for v in hc.imag),
         encirclements=N,
         open_loop_unstable_poles=P,
         closed_loop_unstable_poles=N + P,
+        boundary_poles=n_on,
+        contour_shift=shift,
+        closed_loop_unstable_eig=Z_eig,
+        dt=dt,
     )

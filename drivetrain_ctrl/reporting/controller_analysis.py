@@ -11,7 +11,12 @@ Nothing here draws: a second report can render several analyses.
 mode the clutch loop is open: every margin is None with that reason; the lock entry gives the
 driveline shuffle modes and the torque margin to breakaway instead). The slip operating point is
 taken ``SLIP_DELAY_S`` after the controller start; the locked one by :func:`locked_trim` at the
-lock-up vehicle speed, or from the trajectory after lock-up.
+lock-up vehicle speed, or from the trajectory after lock-up. ``data["modes"]["slip"][controller]
+["judder"]`` holds the judder threshold: ``numeric`` (:func:`~drivetrain_ctrl.linear.clutch.judder_crossing`,
+on any model; its ``mu_slope_crit`` None with ``reason`` when there is none) and ``closed_form``
+(:func:`~drivetrain_ctrl.linear.clutch.judder_threshold`; None with ``closed_form_reason`` off the
+reduced model or for a sampled controller). No default value ever stands in for a figure that
+cannot be computed.
 """
 
 from __future__ import annotations
@@ -34,11 +39,12 @@ from ..linear.clutch import (
     ClutchLoop,
     _controller_sign,
     _judder_threshold,
+    _sampled_loop_poles,
     clutch_loop,
-    judder_threshold,
+    judder_crossing,
     locked_analysis,
 )
-from ..linear.linearisation import linearise_visited_modes, trim_tf
+from ..linear.linearisation import linearise, linearise_visited_modes, trim_tf
 from ..linear.margins import (
     _auto_grid,
     _dt_of,
@@ -111,6 +117,15 @@ ENGAGEMENT_RATE_HZ: float = 100.0
 
 
 N_FREQ: int = 300
+
+
+#: points of the root locus over the friction slope mu', from 0 to 1.5 times the judder threshold
+N_MU_SLOPE: int = 21
+
+
+#: span [s/rad] of that locus when there is no threshold to centre it on (a plot range, never
+#: reported as a threshold)
+MU_SLOPE_SPAN_S_RAD: float = 0.01
 
 
 _RPM = RAD_S_TO_RPM  # rad/s -> rpm
@@ -190,13 +205,19 @@ def _margins_entry(cl: ClutchLoop) -> dict[str, Any]:
     m = loop_margins(cl.L).to_dict()
     reasons = dict(m.pop("reasons") or {})
     out = dict(m)
+    # where loop_margins gives the reason under a related figure's name
+    related = {
+        "disk_margin_db": "disk_margin",
+        "disk_margin_deg": "disk_margin",
+        "crossover_rad_s": "phase_margin_deg",
+    }
     for k in MARGIN_KEYS:
         v = out.get(k)
         if v is None or (isinstance(v, list) and not v and k == "closed_loop_poles"):
             out[k] = None
-            reasons.setdefault(
-                k, reasons.get(k.replace("_db", "").replace("_deg", ""), "undefined")
-            )
+            if k == "closed_loop_poles":
+                reasons.setdefault(k, "the closed loop has no poles (a static loop)")
+            reasons.setdefault(k, reasons.get(related.get(k, k), "not computed by loop_margins"))
     if out.get("natural_frequencies_hz") == []:
         out["natural_frequencies_hz"] = None
         reasons["natural_frequencies_hz"] = "no oscillatory closed-loop pole"
@@ -204,8 +225,48 @@ def _margins_entry(cl: ClutchLoop) -> dict[str, Any]:
     return out
 
 
+def _grid_change(points: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The first change of stability along a root-locus grid: the grid values on either side
+    (``{"from": value, "to": value, "becomes": "unstable" | "stable"}``), None if the stability
+    does not change on the grid."""
+    for a, b in zip(points, points[1:], strict=False):
+        if a["stable"] != b["stable"]:
+            return {
+                "from": a["value"],
+                "to": b["value"],
+                "becomes": "stable" if b["stable"] else "unstable",
+            }
+    return None
+
+
+def _judder(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, Any]:
+    """The judder threshold: numerically on any model (:func:`judder_crossing`, the first crossing
+    of the re-linearised loop's poles over mu') and the closed form where it exists (reduced
+    model, continuous controller); each None with a reason when it cannot be computed."""
+    jc = judder_crossing(op, ctrl)
+    out: dict[str, Any] = {"numeric": jc.to_dict(), "summary": jc.summary()}
+    closed: dict[str, Any] | None = None
+    why: str | None = None
+    if op.kind != "reduced":
+        why = (
+            f"the closed form is derived on the reduced model (this is the {op.kind} model); "
+            "see the numeric threshold"
+        )
+    elif ctrl.is_discrete:
+        why = "the closed form needs a continuous controller (this one is sampled)"
+    else:
+        try:
+            closed = _judder_threshold(cl.op, cl.engine, cl.L).to_dict()
+        except (ValueError, ArithmeticError) as exc:
+            why = f"the closed form failed: {exc}"
+    out["closed_form"] = closed
+    out["closed_form_reason"] = why
+    return out
+
+
 def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, Any]:
-    """Root loci over the controller gain (k_r for law 6) and over the clutch friction slope."""
+    """Root loci over the controller gain (k_r for law 6) and over the clutch friction slope,
+    and the judder threshold (``out["judder"]``)."""
     out: dict[str, Any] = {}
     static = ctrl.lti.nstates == 0 and not ctrl.is_discrete
     factors = np.geomspace(0.1, 10.0, 21)
@@ -231,24 +292,20 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
                 }
             )
         out["gain"] = {"parameter": "gain_factor", "unit": "-", "nominal": 1.0, "points": pts}
-    # physical parameter: the clutch friction slope mu' (judder), through the critical value
-    try:
-        if ctrl.is_discrete:
-            crit = judder_threshold(op, None).mu_slope_crit
-        else:
-            crit = _judder_threshold(cl.op, cl.engine, cl.L).mu_slope_crit
-    except (ValueError, RuntimeError):
-        crit = -0.01
-    if not (math.isfinite(crit) and crit != 0):
-        crit = -0.01
-    vals = [float(v) for v in np.linspace(0.0, 1.5 * crit, 16)]
+    out["gain"]["grid_change"] = _grid_change(out["gain"]["points"])
+    # physical parameter: the clutch friction slope mu' (judder), through the threshold
+    judder = _judder(op, ctrl, cl)
+    crit = judder["numeric"]["mu_slope_crit"]
+    span = 1.5 * crit if crit is not None else -MU_SLOPE_SPAN_S_RAD
+    vals = [float(v) for v in np.linspace(0.0, span, N_MU_SLOPE)]
     if not ctrl.is_discrete:
         d = root_locus(op, ctrl, parameter="mu_slope", values=vals).to_dict()
+        d.pop("crossing", None)  # interpolated between grid points; the threshold is exact
     else:
         pts = []
         for v in vals:
-            c2 = clutch_loop(op, ctrl, mu_slope=v)
-            ps = poles_of(np.linalg.eigvals(c2.closed_loop.A), c2.dt)
+            sys_v = linearise(op, inputs=("x_c",), mu_slope=v)
+            ps = poles_of(_sampled_loop_poles(sys_v, op, ctrl), cl.dt)
             mr = max((p.real for p in ps), default=-math.inf)
             pts.append(
                 {
@@ -259,9 +316,20 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
                 }
             )
         d = {"parameter": "mu_slope", "unit": "s/rad", "points": pts}
+    d["grid_change"] = _grid_change(d["points"])
     d["judder_mu_slope_crit"] = crit
-    d["nominal"] = cl.engine.mu_slope_torque / max(cl.engine.k13, 1e-12)
+    d["judder_reason"] = judder["numeric"]["reason"]
+    d["span_reason"] = (
+        None
+        if crit is not None
+        else f"no threshold to centre the grid on: the default span [{-MU_SLOPE_SPAN_S_RAD:g}, 0]"
+    )
+    es = cl.engine
+    d["nominal"] = es.mu_slope_torque / es.k13 if es.k13 > 0 else None
+    if d["nominal"] is None:
+        d["nominal_reason"] = f"k13 = {es.k13:g} N m: no friction slope to refer to"
     out["mu_slope"] = d
+    out["judder"] = judder
     return out
 
 
@@ -467,6 +535,8 @@ def _engagement_series(res: Any, sc: Scenario, dtr: Drivetrain) -> dict[str, Any
         "omega_driven_rpm": list(map(float, np.interp(t, T, res.state(driven)) * _RPM)),
         "omega_ref_rpm": [float(ref(float(x))) * _RPM for x in t] if ref is not None else None,
         "x_c_m": list(map(float, np.interp(t, T, np.asarray(res.u)[:, ip]))),
+        "x_r_m": list(map(float, np.interp(t, T, np.asarray(res.extras["controller_command"])))),
+        "control_start_s": float(sc.start_time),
         "v_vehicle_kmh": list(map(float, np.interp(t, T, res.state("v_vehicle")) * M_S_TO_KMH)),
         "driven_state": driven,
     }
@@ -528,7 +598,9 @@ def analyse_controller(
         "PS": _bode(cl.PS, w),
     }
     slip_entry["nyquist"] = nyquist_data(cl.L, omega=[float(v) for v in w]).to_dict()
-    slip_entry["root_locus"] = _slip_root_loci(op_s, ctrl, cl)
+    loci = _slip_root_loci(op_s, ctrl, cl)
+    slip_entry["judder"] = loci.pop("judder")
+    slip_entry["root_locus"] = loci
     slip_entry["engine_side"] = dataclasses.asdict(cl.engine)
     slip_entry["discrete"] = cl.discrete
     slip_entry["sample_period_s"] = cl.dt
@@ -583,6 +655,12 @@ def analyse_controller(
         "visited_modes": [
             {
                 "label": v.label,
+                "modes": [list(em) for em in v.op.mode_names],
+                "segments": [
+                    [ti.name, int(r)]
+                    for ti, r in zip(v.op.model.tables, v.op.mode.reg, strict=True)
+                    if ti.region_names is None
+                ],
                 "duration_s": v.duration_s,
                 "t_s": v.op.t,
                 "n_states": v.sys.nstates,

@@ -18,7 +18,6 @@ import base64
 import html
 import io
 import json
-import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,7 +35,7 @@ from .controller_analysis import (
     _tf_text,
     analyse_controller,
 )
-from .figures import report_figures, write_text_pdf
+from .figures import report_figures, write_report_pdf
 
 __all__ = [
     "Report",
@@ -175,6 +174,99 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _ranges(values: list[float], digits: str = ".4g") -> str:
+    lo, hi = min(values), max(values)
+    if format(lo, digits) == format(hi, digits):
+        return format(lo, digits)
+    return f"{lo:{digits}}-{hi:{digits}}"
+
+
+def mode_table(visited: list[dict[str, Any]]) -> tuple[str, list[dict[str, Any]]]:
+    """The table of visited modes (``data["visited_modes"]``, each with ``"modes"``: ``[element,
+    mode]`` pairs and ``"segments"``: ``[table, segment index]`` pairs): modes that differ only in
+    the segment of a piecewise-linear table merged into one row. Returns what every row shares (element modes ``"e=m"`` and table segments, as text) and
+    the rows in order of total time held, each ``{"modes": the other element modes, "segments": the segments per
+    table ("t 2-4, 7"), "duration_s": the total time [s], "frequencies": the natural frequencies
+    [Hz] (damping) of the merged modes as ranges, "members": the number of modes merged}``. When
+    the merged modes have different numbers of oscillatory poles, the frequencies are those of
+    the longest held, so marked."""
+    visited = [
+        {**v, "modes": dict(map(tuple, v["modes"])), "segments": dict(map(tuple, v["segments"]))}
+        for v in visited
+    ]
+    groups: dict[tuple[tuple[str, str], ...], list[dict[str, Any]]] = {}
+    for v in visited:
+        groups.setdefault(tuple(v["modes"].items()), []).append(v)
+    keys = list(groups)
+    elements = list(dict.fromkeys(e for k in keys for e, _ in k))
+    common = [e for e in elements if len({dict(k).get(e) for k in keys}) == 1 and len(keys) > 1]
+    all_tables = list(dict.fromkeys(t for v in visited for t in v.get("segments", {})))
+    fixed = {
+        t: seg.pop()
+        for t in all_tables
+        if len(seg := {v.get("segments", {}).get(t) for v in visited}) == 1 and len(visited) > 1
+    }
+    rows = []
+    for key, members in groups.items():
+        modes = ", ".join(f"{e}={m}" for e, m in key if e not in common) or "-"
+        tables = [t for t in all_tables if t not in fixed]
+        segs = []
+        for t in tables:
+            idx = sorted({int(v["segments"][t]) for v in members if t in v.get("segments", {})})
+            if not idx:
+                continue
+            runs: list[str] = []
+            start = prev = idx[0]
+            for i in [*idx[1:], None]:
+                if i is not None and i == prev + 1:
+                    prev = i
+                    continue
+                runs.append(str(start) if start == prev else f"{start}-{prev}")
+                if i is not None:
+                    start = prev = i
+            segs.append(f"{t} {', '.join(runs)}")
+        longest = max(members, key=lambda v: v["duration_s"])
+        counts = {len(v["natural_frequencies_hz"]) for v in members}
+        if len(counts) == 1:
+            n = counts.pop()
+            fr = ", ".join(
+                f"{_ranges([v['natural_frequencies_hz'][i] for v in members])} "
+                f"({_ranges([v['damping'][i] for v in members], '.3g')})"
+                for i in range(n)
+            )
+        else:
+            fr = ", ".join(
+                f"{f:.4g} ({z:.3g})"
+                for f, z in zip(longest["natural_frequencies_hz"], longest["damping"], strict=True)
+            ) + (" (the longest held of the merged modes; their numbers of oscillatory poles "
+                 "differ)")  # fmt: skip
+        rows.append(
+            {
+                "modes": modes,
+                "segments": "; ".join(segs) or "-",
+                "duration_s": sum(v["duration_s"] for v in members),
+                "frequencies": fr or "none (no oscillatory pole)",
+                "members": len(members),
+            }
+        )
+    rows.sort(key=lambda r: -r["duration_s"])
+    first = dict(keys[0]) if keys else {}
+    same = [f"{e}={first[e]}" for e in common] + [f"{t} segment {i}" for t, i in fixed.items()]
+    return ", ".join(same), rows
+
+
+def _grid_change_text(rl: dict[str, Any]) -> str:
+    """Where the stability changes first along a root-locus grid, in words."""
+    ch = rl.get("grid_change")
+    if ch is None:
+        pts = rl.get("points") or [{"value": None}]
+        return (
+            f"the stability does not change on the grid ({_fmt(pts[0]['value'])} to "
+            f"{_fmt(pts[-1]['value'])})"
+        )
+    return f"on the grid it becomes {ch['becomes']} between {_fmt(ch['from'])} and {_fmt(ch['to'])}"
+
+
 def _sections(
     data: dict[str, Any],
 ) -> list[tuple[str, list[str], list[tuple[str, list[list[str]]]], list[str]]]:
@@ -194,27 +286,40 @@ def _sections(
         f"({', '.join(f'{k} = {_fmt(v)}' for k, v in sorted(inp['controller'].items()) if v is not None)}).",
         f"Slip operating point: the simulated trajectory at t = {_fmt(ops['slip']['t_s'])} s "
         f"({_fmt(inp['slip_delay_s'])} s after the controller start).",
-        f"Lock operating point: {lock['operating_point_source']}.",
+        "Lock operating point: "
+        + (
+            lock["operating_point_source"]
+            if ops["lock"] is not None
+            else f"not available: {lock['operating_point_source']}"
+        )
+        + ".",
     ]
-    rows = [["", "slip", "lock"]]
+    lk = ops["lock"]
+    rows = [["", "slip"] + (["lock"] if lk is not None else [])]
     names = sorted(
         set(ops["slip"]["state"]) | set(ops["slip"]["inputs"]) | set(ops["slip"]["modes"])
     )
-    lk = ops["lock"] or {"state": {}, "inputs": {}, "modes": {}}
     for n in names:
 
         def g(o: dict[str, Any], n: str = n) -> str:
             for grp in ("state", "inputs", "modes"):
                 if n in o[grp]:
                     return _fmt(o[grp][n])
-            return "n/a"
+            return "-"  # the model has no such quantity in that point's description
 
-        rows.append([n, g(ops["slip"]), g(lk)])
+        rows.append([n, g(ops["slip"])] + ([g(lk)] if lk is not None else []))
     cert = ops["slip"]["certificate"]
+    ttl = cert["time_to_lock_s"]
+    ttl_text = (
+        f"time to lock {_fmt(ttl)} s"
+        if ttl is not None
+        else "time to lock not available: the slip is not closing (the slip acceleration is "
+        "zero or has the sign of the slip)"
+    )
     paras.append(
         f"Slip certificate: slip speed {_fmt(cert['slip_speed_rad_s'])} rad/s, slip acceleration "
-        f"{_fmt(cert['slip_accel_rad_s2'])} rad/s^2, time to lock {_fmt(cert['time_to_lock_s'])} s "
-        "(a slip point is not an equilibrium)."
+        f"{_fmt(cert['slip_accel_rad_s2'])} rad/s^2, {ttl_text} (a slip point is not an "
+        "equilibrium)."
     )
     out.append((SECTIONS[0], paras, [("Operating points (SI units)", rows)], ["engagement"]))
 
@@ -247,14 +352,30 @@ def _sections(
     )
     # 4 root loci
     rl = slip["root_locus"]
-    rg = rl["gain"]
+    rg, rm = rl["gain"], rl["mu_slope"]
+    jd = slip["judder"]
     paras = [
         f"Left: closed-loop poles over the controller gain {rg['parameter']} [{rg['unit']}] "
-        f"(nominal {_fmt(rg.get('nominal'))}), crossing {_fmt(rg.get('crossing'))}. Right: over the "
-        f"clutch friction slope mu' [s/rad] (nominal {_fmt(rl['mu_slope'].get('nominal'))}); "
-        f"judder threshold {_fmt(rl['mu_slope'].get('judder_mu_slope_crit'))} s/rad, crossing on "
-        f"the grid {_fmt(rl['mu_slope'].get('crossing'))}."
+        f"(nominal {_fmt(rg.get('nominal'))}); {_grid_change_text(rg)}. Right: over the clutch "
+        f"friction slope mu' [s/rad] of mu/mu0 (nominal at the slip point "
+        f"{_fmt(rm.get('nominal'))}"
+        + (f": not available, {rm['nominal_reason']}" if rm.get("nominal") is None else "")
+        + f"); {_grid_change_text(rm)}"
+        + (f" ({rm['span_reason']})" if rm.get("span_reason") else "")
+        + ".",
+        "Judder threshold (the first friction slope, from 0 towards a falling mu(slip), at which "
+        "a pole of the re-linearised slip mode leaves the stable region; located by bracketing "
+        f"and bisection): {jd['summary']}.",
     ]
+    cf = jd.get("closed_form")
+    if cf is not None:
+        paras.append(
+            f"Closed form (reduced model, linear.judder_threshold): mu' = "
+            f"{_fmt(cf['mu_slope_crit'])} s/rad, {cf['which']} crossing near "
+            f"{_fmt(cf['shuffle_frequency_hz'])} Hz (an approximation of the shuffle crossing)."
+        )
+    else:
+        paras.append(f"Closed form: not available: {jd.get('closed_form_reason')}.")
     out.append((SECTIONS[3], paras, [], ["root_locus"]))
     # 5 nyquist
     ny = slip["nyquist"]
@@ -262,9 +383,16 @@ def _sections(
         (
             SECTIONS[4],
             [
-                f"Encirclements of -1: {ny['encirclements']}; open-loop unstable poles: "
-                f"{ny['open_loop_unstable_poles']}; closed-loop unstable poles Z = N + P = "
-                f"{ny['closed_loop_unstable_poles']}."
+                f"Clockwise encirclements of -1: N = {ny['encirclements']}; open-loop unstable "
+                f"poles: P = {ny['open_loop_unstable_poles']}; closed-loop unstable poles Z = N + "
+                f"P = {ny['closed_loop_unstable_poles']} (from the closed-loop poles: "
+                f"{_fmt(ny.get('closed_loop_unstable_eig'))}).",
+                "Convention, the same for continuous and sampled loops: open-loop poles on the "
+                "stability boundary (an integrator at s = 0 or z = 1; here "
+                f"{ny.get('boundary_poles', 0)}) count as stable, the contour passing them on the "
+                "unstable side (python-control's indentation to the right). Left: the whole "
+                "curve, low frequencies included, with the radius compressed beyond |L| = 1; "
+                "right: a linear window around -1.",
             ],
             [],
             ["nyquist"],
@@ -278,9 +406,9 @@ def _sections(
             v = e.get(k)
             if v is None:
                 return (
-                    "n/a (" + str(e.get("reasons", {}).get(k, "undefined")) + ")"
+                    "not available: " + str(e.get("reasons", {}).get(k, "undefined"))
                     if e is slip
-                    else "n/a"
+                    else "not available: the clutch loop is open (above)"
                 )
             if k == "closed_loop_poles":
                 return "; ".join(f"{p['real']:.4g}{p['imag']:+.4g}j" for p in v)
@@ -300,17 +428,17 @@ def _sections(
             f"Torque margin to breakaway of the {el}: {_fmt(b['margin'])} N m (static capacity "
             f"{_fmt(b['capacity'])} N m, carried {_fmt(b['torque'])} N m)."
         )
-    vrows = [["mode (friction modes, regions, table segments)", "time held [s]", "natural "
-              "frequencies [Hz] (damping)"]]  # fmt: skip
-    for v in data.get("visited_modes", []):
-        fr = ", ".join(
-            f"{f:.4g} ({z:.3g})"
-            for f, z in zip(v["natural_frequencies_hz"], v["damping"], strict=True)
-        )
-        vrows.append([v["label"], _fmt(v["duration_s"]), fr or "none (no oscillatory pole)"])
+    common, mrows = mode_table(data.get("visited_modes", []))
+    vrows = [["mode (elements that differ)", "table segments", "time held [s]",
+              "natural frequencies [Hz] (damping)"]]  # fmt: skip
+    for r in mrows:
+        vrows.append([r["modes"], r["segments"], _fmt(r["duration_s"]), r["frequencies"]])
     paras.append(
         "Every mode the engagement run holds for at least "
-        f"{VISITED_MIN_S * 1e3:g} ms, linearised at the middle of its longest interval:"
+        f"{VISITED_MIN_S * 1e3:g} ms, linearised at the middle of its longest interval; modes "
+        "that differ only in the segment of a piecewise-linear table (spring pieces, pedal map) "
+        "are one row, with their times added and the range of their frequencies"
+        + (f". In every one: {common}." if common else ".")
     )
     out.append(
         (
@@ -418,24 +546,38 @@ def _html(data: dict[str, Any], figs: dict[str, Any]) -> str:
     return "\n".join(parts) + "\n"
 
 
-def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
-
-    lines: list[tuple[str, str]] = []  # (style, text)
+def _pdf_blocks(data: dict[str, Any], figs: dict[str, Any]) -> list[tuple[Any, ...]]:
+    """The PDF's content in reading order: each section's text, tables and then its figures."""
     inp = data["inputs"]
-    lines.append(
-        ("h1", f"Clutch controller report: {inp['controller_name']} ({inp['model']} model)")
-    )
-    order: list[str] = []
+    blocks: list[tuple[Any, ...]] = [
+        (
+            "h1",
+            f"Clutch controller report: {inp['controller_name']} on the {inp['model']} model, "
+            f"scenario {inp['scenario']}",
+        )
+    ]
+    placed: list[str] = []
     for title, paras, tables, fnames in _sections(data):
-        lines.append(("h2", title))
-        for p in paras:
-            lines += [("p", s) for s in textwrap.wrap(p, 105)]
+        blocks.append(("h2", title))
+        blocks += [("p", p) for p in paras]
         for cap, rows in tables:
-            lines.append(("p", cap + ":"))
-            width = [min(max(len(r[i]) for r in rows), 60) for i in range(len(rows[0]))]
-            for r in rows:
-                txt = "  ".join(c[:60].ljust(w) for c, w in zip(r, width, strict=True))
-                lines += [("t", s) for s in textwrap.wrap(txt, 120, drop_whitespace=False)]
-        lines.append(("p", ""))
-        order += [f for f in fnames if f not in order]
-    write_text_pdf(lines, [figs[f] for f in order + [f for f in figs if f not in order]], path)
+            blocks.append(("table", cap, rows))
+        for f in fnames:
+            if f not in placed:
+                blocks.append(("figure", figs[f]))
+                placed.append(f)
+    rest = [f for f in figs if f not in placed]
+    if rest:
+        blocks.append(("h2", "Other figures"))
+        blocks += [("figure", figs[f]) for f in rest]
+    return blocks
+
+
+def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
+    inp = data["inputs"]
+    write_report_pdf(
+        _pdf_blocks(data, figs),
+        path,
+        header=f"drivetrain_ctrl controller report: {inp['controller_name']}, {inp['model']} "
+        f"model, {inp['scenario']}",
+    )

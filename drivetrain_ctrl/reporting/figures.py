@@ -4,8 +4,8 @@
 a strip chart of the modes of every friction element and backlash, event markers);
 :func:`plot_energy` the energy balance; :func:`plot_engagement` clutch starts in the layout of the
 paper's Fig. 14; :func:`plot_loop`, :func:`plot_nyquist` and :func:`plot_root_locus` the loop
-analysis (:mod:`drivetrain_ctrl.linear.margins`); :func:`report_figures` and :func:`write_text_pdf` the
-controller report. All build a
+analysis (:mod:`drivetrain_ctrl.linear.margins`); :func:`report_figures`, :func:`pdf_pages` and
+:func:`write_report_pdf` the controller report. All build a
 :class:`matplotlib.figure.Figure` directly (no pyplot, so no GUI backend, no global figure registry
 and nothing to close) and save it as PNG if a path is given. In Jupyter the returned figure
 displays itself; elsewhere use ``fig.savefig(...)``.
@@ -16,6 +16,7 @@ gearbox primary shaft so that they can be compared on one axis.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -39,7 +40,8 @@ __all__ = [
     "plot_nyquist",
     "plot_root_locus",
     "report_figures",
-    "write_text_pdf",
+    "pdf_pages",
+    "write_report_pdf",
     "DPI",
 ]
 
@@ -130,17 +132,37 @@ def _clutch_capacity(model: Model, u: F64) -> F64 | None:
     return fr.capacity(np.asarray(u[:, model.input_names.index(fr.capacity_input)], dtype=float))
 
 
-def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Figure:
+def plot_simulation(
+    res: SimulationResult,
+    path: str | Path | None = None,
+    *,
+    scenario: str | None = None,
+    controller: str | None = None,
+    reference: Any = None,
+    control_start: float | None = None,
+) -> Figure:
     """Overview of run ``res``; saved as PNG (``DPI``) to ``path`` if given. Returns the figure.
 
     Panels: (1) speeds [rpm] of the engine, the clutch disc / primary shaft and the wheels and
     vehicle referred to the primary shaft (right axis: vehicle speed [km/h] for the same no-slip
-    primary speed); (2) coupling torques [N m] referred to the primary shaft: clutch (with its
-    capacity, dashed), damper, gear mesh / lumped shaft (``backlash``), half-shafts (``axle``);
-    (3) inputs: throttle [-], clutch pedal [mm], service brake [N m]; (4) a strip chart of the mode
-    of every friction element and backlash over time, with a tick at each of its events. A dotted
-    vertical line marks the final clutch lock-up.
+    primary speed), and the engine-speed reference of a closed-loop run; (2) coupling torques
+    [N m] referred to the primary shaft: clutch (with its capacity, dashed), damper, gear mesh /
+    lumped shaft (``backlash``), half-shafts (``axle``); (3) inputs: throttle [-], clutch pedal
+    [mm] and, in closed loop, the controller's command x_r [mm] (the pedal is the actuator's
+    response to it), service brake [N m]; (4) a strip chart of the mode of every friction element
+    and backlash over time, with a tick at each of its events. A dotted vertical line marks the
+    final clutch lock-up, a dash-dotted one the controller's start.
+
+    ``scenario`` and ``controller`` (names) head the title; ``reference``: the engine-speed
+    reference omega_r(t) [rad/s] (a :class:`~drivetrain_ctrl.core.signals.Signal`), drawn from
+    ``control_start`` [s] on (the controller's start; None: the whole run).
     """
+    if reference is not None and not callable(reference):
+        raise ValueError(
+            f"plot_simulation: reference = {reference!r}: a Signal (omega_r(t) [rad/s]) or None"
+        )
+    if control_start is not None and not is_finite_real(control_start):
+        raise ValueError(f"plot_simulation: control_start = {control_start!r}: a time [s] or None")
     model = res.model
     t = res.t
     bodies = [b.name for b in model.chain.bodies]
@@ -157,7 +179,10 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     fig = _new_figure(4, [3.0, 3.0, 1.8, strip_h], (11.0, 10.0 + 0.3 * len(moded)))
     ax_w, ax_T, ax_u, ax_m = fig.axes
     ip = _primary_index(model)
-    title = f"{model.chain.name}: status {res.status}, {len(res.events)} events"
+    head = ", ".join(x for x in (scenario, f"controller {controller}" if controller else None) if x)
+    title = (f"{head}\n" if head else "") + (
+        f"{model.chain.name}: status {res.status}, {len(res.events)} events"
+    )
     if res.smoothing is not None:
         title += f", friction smoothed (tanh, {res.smoothing:g})"
     t_lock = _lockup(res)
@@ -183,6 +208,13 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
         elif not drivetrain and b.kind == "rotational":
             # a general chain: every rotational body in its own frame
             ax_w.plot(t, res.x[:, i] / RPM_TO_RAD_S, lw=1.3, label=b.name)
+    if reference is not None:
+        names = [b.name for b in model.chain.bodies]
+        ie = names.index("engine") if "engine" in names else 0
+        t_r = t if control_start is None else t[t >= control_start]
+        w_r = np.asarray(reference(t_r), dtype=float) * _to_primary_factor(model, ie, ip)
+        ax_w.plot(t_r, w_r / RPM_TO_RAD_S, color="k", ls="--", lw=1.1, zorder=5,
+                  label="engine reference omega_r")  # fmt: skip
     ax_w.set_ylabel("speed [rpm]\n(primary-shaft frame)" if drivetrain else "speed [rpm]")
     ax_w.legend(loc="best", fontsize=8, ncol=2)
     if "vehicle" in bodies:
@@ -229,9 +261,18 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     ax_u.set_ylim(-0.05, 1.05)
     if "pedal" in inputs:
         ax_p = ax_u.twinx()
+        cmd = res.extras.get("controller_command")
         handles += ax_p.plot(
-            t, 1e3 * res.u[:, inputs.index("pedal")], color="C0", label="clutch pedal"
+            t,
+            1e3 * res.u[:, inputs.index("pedal")],
+            color="C0",
+            label="clutch pedal" if cmd is None else "clutch pedal x_c (actuator)",
         )
+        if cmd is not None:
+            handles += ax_p.plot(
+                t, 1e3 * np.asarray(cmd), color="k", ls="--", lw=1.0,
+                label="controller command x_r",
+            )  # fmt: skip
         ax_p.set_ylabel("pedal [mm]")
     if "brake" in inputs and np.any(res.u[:, inputs.index("brake")] != 0.0):
         ax_b = ax_u.twinx()
@@ -282,6 +323,13 @@ def plot_simulation(res: SimulationResult, path: str | Path | None = None) -> Fi
     ax_m.grid(True, axis="x", alpha=0.3)
     ax_m.set_xlim(float(t[0]), t_hi)
     _mark_lockup([ax_w, ax_T, ax_u, ax_m], t_lock)
+    if control_start is not None:
+        for ax in (ax_w, ax_T, ax_u, ax_m):
+            ax.axvline(control_start, color="0.3", ls="-.", lw=0.8)
+        ax_w.annotate(
+            "controller start", (control_start, 1.0), xycoords=("data", "axes fraction"),
+            xytext=(3, -10), textcoords="offset points", fontsize=7, color="0.3",
+        )  # fmt: skip
     _save(fig, path)
     return fig
 
@@ -532,6 +580,15 @@ def plot_loop(
     return fig
 
 
+def _compress(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """The radius mapping of the Nyquist overview: ``|L|`` kept up to 1, ``1 + log10 |L|`` beyond
+    (a monotone map of the radius: encirclements of -1, which stays at -1, are unchanged)."""
+    r = np.abs(z)
+    with np.errstate(divide="ignore"):
+        rho = np.where(r <= 1.0, r, 1.0 + np.log10(np.maximum(r, 1.0)))
+    return np.asarray(rho * np.exp(1j * np.angle(z)), dtype=complex)
+
+
 def plot_nyquist(
     real: Any,
     imag: Any,
@@ -539,30 +596,100 @@ def plot_nyquist(
     encirclements: int,
     open_loop_unstable_poles: int,
     closed_loop_unstable_poles: int,
+    omega: Any = None,
+    boundary_poles: int = 0,
+    dt: float | None = None,
+    title: str | None = None,
     path: str | Path | None = None,
 ) -> Figure:
-    """Nyquist curve ``L(j omega)`` for ``omega > 0`` (its mirror image dashed), the critical point
-    -1 and the unit circle; the title gives the encirclements N of -1, the open-loop unstable
-    poles P and the closed-loop unstable poles Z = N + P. Saved to ``path`` as PNG if given."""
+    """Nyquist curve ``L`` for ``omega >= 0`` (its mirror image dashed) with the critical point
+    -1, in two panels: left the whole curve, low frequencies included, with the radius compressed
+    beyond the unit circle (``1 + log10 |L|``; circles mark ``|L|`` = 1, 10, 100, ...; dots mark
+    decades of ``omega`` [rad/s], given as ``omega``), right a linear window around -1 with the
+    unit circle. The title gives the encirclements N of -1, the open-loop unstable poles P and
+    the closed-loop unstable poles Z = N + P, and how ``boundary_poles`` (integrators) are counted
+    (:func:`drivetrain_ctrl.linear.margins.nyquist_data`); ``dt`` [s] marks a sampled loop;
+    ``title`` is put in front. Saved to ``path`` as PNG if given."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(6, 5.5), layout="constrained")
-    ax = fig.subplots()
-    ax.plot(real, imag, "b", label="L(jw), w > 0")
-    ax.plot(real, [-y for y in imag], "b--", lw=0.8, label="w < 0")
-    ax.plot([-1], [0], "r+", ms=12)
-    th = np.linspace(0, 2 * np.pi, 200)
-    ax.plot(np.cos(th), np.sin(th), color="0.7", lw=0.5)
-    lim = min(max(3.0, 1.2 * max((abs(v) for v in real), default=0.0)), 10.0)
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(-lim, lim)
-    ax.set_xlabel("Re L")
-    ax.set_ylabel("Im L")
-    ax.set_title(
-        f"Nyquist: N = {encirclements}, P = {open_loop_unstable_poles}, "
-        f"Z = {closed_loop_unstable_poles}"
+    z = np.asarray(real, dtype=float) + 1j * np.asarray(imag, dtype=float)
+    if omega is not None and len(omega) != z.size:
+        raise ValueError(
+            f"plot_nyquist: omega has {len(omega)} values for {z.size} points (one per point)"
+        )
+    fig = Figure(figsize=(11.5, 5.6), layout="constrained")
+    ax_c, ax_z = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1.0]})
+    th = np.linspace(0, 2 * np.pi, 361)
+    # left: the whole curve, radius compressed
+    zc = _compress(z)
+    rmax = float(np.max(np.abs(zc))) if zc.size else 1.0
+    for k in range(int(math.floor(max(rmax, 1.0))) + 1):
+        if k == 0:
+            continue
+        ax_c.plot(k * np.cos(th), k * np.sin(th), color="0.8", lw=0.6, zorder=0)
+        ax_c.annotate(
+            f"|L| = {10 ** (k - 1):g}",
+            (k * np.cos(np.pi / 4), k * np.sin(np.pi / 4)),
+            fontsize=7,
+            color="0.45",
+        )
+    ax_c.plot(zc.real, zc.imag, "C0", lw=1.4, label="L, omega > 0")
+    ax_c.plot(zc.real, -zc.imag, "C0--", lw=0.8, label="omega < 0 (mirror)")
+    if omega is not None and z.size > 1:
+        w = np.asarray(omega, dtype=float)
+        pos = w > 0
+        if np.count_nonzero(pos) > 1:
+            lw = np.log10(w[pos])
+            decades = np.arange(math.ceil(lw.min()), math.floor(lw.max()) + 1)
+            placed: list[complex] = []
+            for d in decades:
+                zi = np.interp(d, lw, zc[pos].real) + 1j * np.interp(d, lw, zc[pos].imag)
+                # one label per place: the decades where L has fallen to ~0 crowd the origin
+                if any(abs(zi - q) < 0.06 * max(rmax, 1.6) for q in placed):
+                    continue
+                placed.append(zi)
+                ax_c.plot([zi.real], [zi.imag], "o", color="C1", ms=3.5, zorder=3)
+                ax_c.annotate(
+                    f"{10.0**d:g}", (zi.real, zi.imag), xytext=(3, 3),
+                    textcoords="offset points", fontsize=7, color="C1",
+                )  # fmt: skip
+            ax_c.plot([], [], "o", color="C1", ms=3.5, label="omega [rad/s]")
+    ax_c.plot([-1], [0], "r+", ms=12, mew=2, label="-1")
+    lim = max(1.6, 1.08 * rmax)
+    ax_c.set_xlim(-lim, lim)
+    ax_c.set_ylim(-lim, lim)
+    ax_c.set_aspect("equal")
+    ax_c.set_xlabel("Re L (radius compressed beyond |L| = 1)")
+    ax_c.set_ylabel("Im L")
+    ax_c.set_title("whole curve, low frequencies included", fontsize=9)
+    ax_c.legend(loc="lower left", fontsize=7)
+    # right: linear window around -1
+    ax_z.plot(np.cos(th), np.sin(th), color="0.7", lw=0.6)
+    ax_z.plot(z.real, z.imag, "C0", lw=1.4)
+    ax_z.plot(z.real, -z.imag, "C0--", lw=0.8)
+    ax_z.plot([-1], [0], "r+", ms=12, mew=2)
+    ax_z.axhline(0.0, color="0.5", lw=0.5)
+    ax_z.axvline(0.0, color="0.5", lw=0.5)
+    ax_z.set_xlim(-3.0, 1.5)
+    ax_z.set_ylim(-2.25, 2.25)
+    ax_z.set_aspect("equal")
+    ax_z.set_xlabel("Re L")
+    ax_z.set_ylabel("Im L")
+    ax_z.set_title("around -1 (linear scale; grey: unit circle)", fontsize=9)
+    conv = (
+        f"; {boundary_poles} open-loop pole(s) on the stability boundary (integrator) counted "
+        "stable: the contour passes them on the unstable side"
+        if boundary_poles
+        else ""
     )
-    ax.legend(loc="lower left", fontsize=8)
+    head = (title + ": ") if title else ""
+    kind = f"sampled, dt = {dt:g} s" if dt else "continuous"
+    fig.suptitle(
+        f"{head}Nyquist ({kind}): N = {encirclements} clockwise encirclements of -1, "
+        f"P = {open_loop_unstable_poles}, Z = N + P = {closed_loop_unstable_poles} unstable "
+        f"closed-loop poles" + ("\n" + conv[2:] if conv else ""),
+        fontsize=10,
+    )
     _save(fig, path)
     return fig
 
@@ -598,15 +725,40 @@ def report_figures(data: dict[str, Any]) -> dict[str, Figure]:
             for pt in rl["points"]
         ]
         _root_locus_axes(fig, ax, pts, rl["parameter"], rl["unit"])
+        if key == "mu_slope":
+            jn = (slip.get("judder") or {}).get("numeric") or {}
+            crit = jn.get("mu_slope_crit")
+            ax.set_title(
+                f"root locus over mu_slope [s/rad]\njudder threshold {crit:.4g} s/rad "
+                f"({jn['frequency_hz']:.3g} Hz mode)"
+                if crit is not None
+                else "root locus over mu_slope [s/rad]\njudder threshold not available",
+                fontsize=10,
+            )
+    dts = slip.get("sample_period_s")
+    fig.suptitle(
+        f"Slip-mode poles (controller {cname}, {data['inputs']['model']} model); colour: the "
+        "parameter's value"
+        + (
+            f"\nsampled loop: poles z drawn as ln(z)/dt, frequencies folded below "
+            f"{0.5 / dts:g} Hz"
+            if dts
+            else ""
+        )
+    )
     figs["root_locus"] = fig
 
     ny = slip["nyquist"]
     figs["nyquist"] = plot_nyquist(
         ny["real"],
         ny["imag"],
+        omega=ny.get("omega"),
         encirclements=ny["encirclements"],
         open_loop_unstable_poles=ny["open_loop_unstable_poles"],
         closed_loop_unstable_poles=ny["closed_loop_unstable_poles"],
+        boundary_poles=ny.get("boundary_poles", 0),
+        dt=ny.get("dt"),
+        title=f"L of controller {cname} (slip)",
     )
 
     # step comparison
@@ -626,68 +778,284 @@ def report_figures(data: dict[str, Any]) -> dict[str, Figure]:
     es = data["engagement_series"]
     fig = Figure(figsize=(8, 8), layout="constrained")
     a0, a1, a2 = fig.subplots(3, 1, sharex=True)
-    a0.plot(es["t_s"], es["omega_engine_rpm"], label="omega_engine")
+    a0.plot(es["t_s"], es["omega_engine_rpm"], label="engine omega_1")
     a0.plot(es["t_s"], es["omega_driven_rpm"], label=es["driven_state"])
     if es["omega_ref_rpm"] is not None:
-        a0.plot(es["t_s"], es["omega_ref_rpm"], "k:", label="omega_r")
+        t0 = es.get("control_start_s") or 0.0
+        tr = [(t, r) for t, r in zip(es["t_s"], es["omega_ref_rpm"], strict=True) if t >= t0]
+        a0.plot([t for t, _ in tr], [r for _, r in tr], "k--", lw=1.0, label="reference omega_r")
     a0.set_ylabel("speed [rpm]")
     a0.legend(fontsize=8)
-    a1.plot(es["t_s"], es["x_c_m"])
-    a1.set_ylabel("x_c [m]")
+    if es.get("x_r_m") is not None:
+        a1.plot(es["t_s"], [1e3 * v for v in es["x_r_m"]], "k--", lw=1.0, label="command x_r")
+    a1.plot(es["t_s"], [1e3 * v for v in es["x_c_m"]], label="actuator x_c (pedal)")
+    a1.set_ylabel("clutch position [mm]")
+    a1.legend(fontsize=8)
     a2.plot(es["t_s"], es["v_vehicle_kmh"])
     a2.set_ylabel("vehicle [km/h]")
     a2.set_xlabel("t [s]")
-    a0.set_title(f"engagement ({data['inputs']['scenario']}, controller {cname})")
+    fig.suptitle(
+        f"Engagement: scenario {data['inputs']['scenario']}, controller {cname}, "
+        f"{data['inputs']['model']} model"
+    )
+    t_op = data["operating_points"]["slip"]["t_s"]
     for ax in (a0, a1, a2):
-        ax.axvline(data["operating_points"]["slip"]["t_s"], color="r", lw=0.6)
+        ax.axvline(t_op, color="r", lw=0.6)
+        if es.get("control_start_s") is not None:
+            ax.axvline(es["control_start_s"], color="0.3", ls="-.", lw=0.8)
+        ax.grid(True, alpha=0.3)
+    a0.annotate(
+        "slip operating point", (t_op, 1.0), xycoords=("data", "axes fraction"),
+        xytext=(3, -10), textcoords="offset points", fontsize=7, color="r",
+    )  # fmt: skip
     figs["engagement"] = fig
 
     # lock: open-loop poles of the locked driveline
-    fig = Figure(figsize=(6, 4.5), layout="constrained")
+    import textwrap
+
+    fig = Figure(figsize=(7, 5), layout="constrained")
     sm = lock.get("shuffle_modes") or []
     ttl = ", ".join(f"{m['natural_frequency_hz']:.3g} Hz (zeta {m['damping']:.3g})" for m in sm)
+    if lock.get("open_loop_poles") is None:
+        ttl = f"not available: {lock.get('reasons', {}).get('shuffle_modes', 'no locked point')}"
     _pole_axes(
         fig.subplots(),
         lock.get("open_loop_poles") or [],
-        f"locked driveline poles; shuffle: {ttl or 'none'}",
+        "\n".join(textwrap.wrap(f"shuffle modes: {ttl or 'none'}", 80)),
+    )
+    fig.suptitle(
+        f"Locked driveline, open-loop poles (controller {cname}, {data['inputs']['model']} model)",
+        fontsize=10,
     )
     figs["lock"] = fig
     return figs
 
 
-def write_text_pdf(
-    lines: list[tuple[str, str]], figures: list[Figure], path: str | Path, *, per_page: int = 62
-) -> None:
-    """A PDF of text pages then figures. ``lines``: ``(style, text)`` with style ``h1``, ``h2``,
-    ``p`` (paragraph) or ``t`` (monospace table row), already wrapped; A4 pages of ``per_page``
-    lines; no creation date (the same input gives the same file)."""
-    if isinstance(per_page, bool) or not isinstance(per_page, (int, np.integer)) or per_page < 1:
-        raise ValueError(f"write_text_pdf: per_page = {per_page!r}: must be an integer >= 1")
-    styles = {"h1", "h2", "p", "t"}
-    for i, item in enumerate(lines):
-        if not (isinstance(item, (tuple, list)) and len(item) == 2 and item[0] in styles):
-            raise ValueError(
-                f"write_text_pdf: lines[{i}] = {item!r}: must be (style, text) with style one "
-                f"of {sorted(styles)}"
-            )
-    from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.figure import Figure
+#: the PDF report's page (A4 portrait) and margins [in]
+PDF_PAGE: tuple[float, float] = (8.27, 11.69)
+PDF_MARGINS: tuple[float, float, float, float] = (0.6, 0.6, 0.7, 0.7)  # left, right, top, bottom
 
-    with PdfPages(path, metadata={"Creator": "drivetrain_ctrl", "CreationDate": None}) as pdf:
-        for k in range(0, len(lines), per_page):
-            fig = Figure(figsize=(8.27, 11.69))
-            y = 0.97
-            for style, s in lines[k : k + per_page]:
-                kw: dict[str, Any] = (
-                    {"fontsize": 7, "family": "monospace"}
-                    if style == "t"
-                    else {
-                        "fontsize": {"h1": 12, "h2": 10, "p": 7.5}[style],
-                        "weight": "bold" if style in ("h1", "h2") else "normal",
-                    }
+#: resolution [dpi] at which figures are placed into the PDF's pages
+PDF_FIGURE_DPI: int = 150
+
+# font sizes [pt] of the PDF's text styles; tables are monospaced
+_PDF_SIZES = {"h1": 13.0, "h2": 11.0, "p": 8.0, "caption": 8.0, "t": 6.5}
+
+#: the block kinds of :func:`pdf_pages`
+PDF_BLOCKS: tuple[str, ...] = ("h1", "h2", "p", "table", "figure")
+
+
+def _text_width(s: str, size: float, mono: bool, renderer: Any) -> float:
+    """Width of ``s`` [in] at ``size`` pt as the PDF draws it."""
+    from matplotlib.font_manager import FontProperties
+
+    fp = FontProperties(family="monospace" if mono else "sans-serif", size=size)
+    w, _, _ = renderer.get_text_width_height_descent(s, fp, ismath=False)
+    return float(w) / renderer.dpi
+
+
+def _wrap_to(text: str, width_in: float, size: float, mono: bool, renderer: Any) -> list[str]:
+    """``text`` wrapped into lines no wider than ``width_in`` [in] (measured; a word longer than a
+    line is broken)."""
+    import textwrap
+
+    if not text:
+        return [""]
+    n = max(8, int(width_in * 72 / (0.45 * size)))  # a first guess of the characters per line
+    while True:
+        lines = textwrap.wrap(text, n, break_long_words=True, break_on_hyphens=False) or [""]
+        if n <= 8 or all(_text_width(x, size, mono, renderer) <= width_in for x in lines):
+            return lines
+        n -= max(1, n // 40)
+
+
+def _table_lines(rows: list[list[str]], width_chars: int) -> list[list[str]]:
+    """The rows of a table as monospaced lines that fit ``width_chars``: every column as wide as its
+    widest cell, and when that is too wide for the page the widest columns shrink (to no less
+    than 8 characters, or their header) and their cells wrap. Returns one list of lines per row."""
+    import textwrap
+
+    ncol = max(len(r) for r in rows)
+    rows = [list(r) + [""] * (ncol - len(r)) for r in rows]
+    gap = 2
+    natural = [max(max(len(r[i]) for r in rows), 1) for i in range(ncol)]
+    avail = max(width_chars - gap * (ncol - 1), 8 * ncol)
+    width = list(natural)
+    while sum(width) > avail:
+        i = max(range(ncol), key=lambda k: width[k])
+        floor = max(8, min(len(rows[0][i].split(" ")[0]), 20))
+        if width[i] <= floor:
+            break
+        width[i] = max(floor, width[i] - max(1, (sum(width) - avail) // max(1, ncol)))
+    out = []
+    for r in rows:
+        cells = [
+            textwrap.wrap(c, width[i], break_long_words=True, break_on_hyphens=False) or [""]
+            for i, c in enumerate(r)
+        ]
+        h = max(len(c) for c in cells)
+        out.append(
+            [
+                (" " * gap)
+                .join(
+                    (cells[i][k] if k < len(cells[i]) else "").ljust(width[i]) for i in range(ncol)
                 )
-                fig.text(0.05, y, s, va="top", **kw)
-                y -= 0.015
-            pdf.savefig(fig)
-        for f in figures:
-            pdf.savefig(f)
+                .rstrip()
+                for k in range(h)
+            ]
+        )
+    return out
+
+
+def pdf_pages(blocks: list[tuple[Any, ...]], *, header: str | None = None) -> list[Figure]:
+    """The pages (A4 :class:`~matplotlib.figure.Figure` s) of a report laid out from ``blocks``, in
+    order: ``("h1" | "h2" | "p", text)`` headings and paragraphs (wrapped to the page),
+    ``("table", caption, rows)`` with ``rows[0]`` the header (columns sized to the page, long
+    cells wrapped, the header repeated on a continuation page) and ``("figure", Figure)`` placed
+    where it stands, scaled to the text width (shrunk to fit the rest of a page, or moved to the
+    next one). ``header`` is printed at the foot of every page with the page number."""
+    from io import BytesIO
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.image import imread
+    from matplotlib.lines import Line2D
+
+    for i, b in enumerate(blocks):
+        ok = isinstance(b, tuple | list) and len(b) >= 2 and b[0] in PDF_BLOCKS
+        if ok and b[0] in ("h1", "h2", "p"):
+            ok = len(b) == 2 and isinstance(b[1], str)
+        elif ok and b[0] == "table":
+            ok = len(b) == 3 and isinstance(b[2], list) and len(b[2]) >= 1
+        elif ok:
+            ok = len(b) == 2 and isinstance(b[1], Figure)
+        if not ok:
+            raise ValueError(
+                f"pdf_pages: blocks[{i}] = {b!r:.80}: must be (h1|h2|p, text), "
+                "(table, caption, rows) or (figure, Figure)"
+            )
+    W, H = PDF_PAGE
+    ml, mr, mt, mb = PDF_MARGINS
+    tw = W - ml - mr
+    measure = FigureCanvasAgg(Figure(figsize=(1, 1), dpi=72)).get_renderer()
+    pages: list[Figure] = []
+    page: Figure | None = None
+    y = 0.0  # distance from the top [in]
+
+    def new_page() -> Figure:
+        nonlocal page, y
+        page = Figure(figsize=PDF_PAGE)
+        pages.append(page)
+        y = mt
+        return page
+
+    def room(h: float) -> Figure:
+        """The current page if ``h`` [in] fits below the cursor, else a new one."""
+        if page is None or y + h > H - mb + 1e-9:
+            return new_page()
+        return page
+
+    def line(s: str, style: str, *, x: float = ml) -> None:
+        nonlocal y
+        size = _PDF_SIZES[style]
+        lh = size * 1.38 / 72
+        pg = room(lh)
+        kw: dict[str, Any] = {"fontsize": size, "va": "top", "parse_math": False}
+        if style == "t":
+            kw["family"] = "monospace"
+        else:
+            kw["family"] = "sans-serif"
+            kw["weight"] = "bold" if style in ("h1", "h2") else "normal"
+            kw["style"] = "italic" if style == "caption" else "normal"
+        pg.text(x / W, 1 - y / H, s, **kw)
+        y += lh
+
+    for b in blocks:
+        kind = b[0]
+        if kind in ("h1", "h2", "p"):
+            size = _PDF_SIZES[kind]
+            lines = _wrap_to(b[1], tw, size, False, measure)
+            if kind in ("h1", "h2"):
+                room(0.15 + size * 1.38 / 72 * (len(lines) + 4))  # keep with what follows
+                y += 0.12 if y > mt else 0.0
+            for s in lines:
+                line(s, kind)
+            y += 0.05
+        elif kind == "table":
+            caption, rows = b[1], [[str(c) for c in r] for r in b[2]]
+            ch = _text_width("0" * 40, _PDF_SIZES["t"], True, measure) / 40
+            tlines = _table_lines(rows, int(tw / ch))
+            lh = _PDF_SIZES["t"] * 1.38 / 72
+            room(lh * (len(tlines[0]) + (len(tlines[1]) if len(tlines) > 1 else 0) + 2))
+            for s in _wrap_to(caption, tw, _PDF_SIZES["caption"], False, measure):
+                line(s, "caption")
+
+            def head(cont: bool, tlines: list[list[str]] = tlines) -> None:
+                nonlocal y
+                if cont:
+                    line("(continued)", "caption")
+                for s in tlines[0]:
+                    line(s, "t")
+                assert page is not None
+                page.add_artist(Line2D([ml / W, 1 - mr / W], [1 - y / H] * 2, lw=0.6, color="k"))
+                y += 0.03
+
+            head(False)
+            ruled = any(len(r) > 1 for r in tlines[1:])  # wrapped cells: a rule between rows
+            for k, r in enumerate(tlines[1:]):
+                if page is None or y + lh * len(r) > H - mb:
+                    new_page()
+                    head(True)
+                for s in r:
+                    line(s, "t")
+                if ruled and k < len(tlines) - 2:
+                    assert page is not None
+                    page.add_artist(
+                        Line2D([ml / W, 1 - mr / W], [1 - (y + 0.01) / H] * 2, lw=0.3, color="0.7")
+                    )
+                    y += 0.02
+            y += 0.1
+        else:
+            f = b[1]
+            fw, fh = (float(v) for v in f.get_size_inches())
+            w = min(tw, fw)
+            h = fh * w / fw
+            full = H - mt - mb
+            if h > full:
+                h, w = full, fw * full / fh
+            left = H - mb - y
+            if page is None or h > left:
+                if page is not None and left >= 0.6 * h:
+                    h, w = left, fw * left / fh
+                else:
+                    new_page()
+            buf = BytesIO()
+            f.savefig(buf, format="png", dpi=PDF_FIGURE_DPI)
+            buf.seek(0)
+            img = imread(buf, format="png")
+            assert page is not None
+            ax = page.add_axes((ml / W + (tw - w) / 2 / W, 1 - (y + h) / H, w / W, h / H))
+            ax.imshow(img, interpolation="antialiased", aspect="auto")
+            ax.set_axis_off()
+            y += h + 0.15
+    if not pages:
+        new_page()
+    n = len(pages)
+    for k, pg in enumerate(pages):
+        foot = f"{header} - page {k + 1} of {n}" if header else f"page {k + 1} of {n}"
+        pg.text(0.5, mb / 2 / H, foot, ha="center", va="center", fontsize=7, color="0.4",
+                parse_math=False)  # fmt: skip
+    return pages
+
+
+def write_report_pdf(
+    blocks: list[tuple[Any, ...]], path: str | Path, *, header: str | None = None
+) -> None:
+    """Write the pages of :func:`pdf_pages` (``blocks``, ``header``) as a PDF to ``path``; no
+    creation date (the same input gives the same file)."""
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    pages = pdf_pages(blocks, header=header)
+    with PdfPages(path, metadata={"Creator": "drivetrain_ctrl", "CreationDate": None}) as pdf:
+        for pg in pages:
+            pdf.savefig(pg)

@@ -93,11 +93,11 @@ def test_plot_functions_name_bad_input() -> None:
         plot_loop([1.0, 2.0, 3.0], {"L": ([0.0, 1.0], [0.0, 1.0, 2.0])}, title="t")
 
 
-def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> None:
+def test_plot_paths_must_be_png_and_pdf_blocks_are_checked(tmp_path) -> None:
     """A plot never overwrites a file of another kind (e.g. a CSV) with PNG bytes."""
     from drivetrain_ctrl.plant.drivetrain import Drivetrain
     from drivetrain_ctrl.plant.params import default_params
-    from drivetrain_ctrl.reporting.figures import write_text_pdf
+    from drivetrain_ctrl.reporting.figures import write_report_pdf
     from drivetrain_ctrl.scenarios.scenario import load_scenario
 
     res = run_scenario(
@@ -111,10 +111,11 @@ def test_plot_paths_must_be_png_and_text_pdf_arguments_are_checked(tmp_path) -> 
     assert data.read_text(encoding="utf-8") == "keep"
     res.plot(tmp_path / "ok.png")
     assert (tmp_path / "ok.png").read_bytes()[:4] == b"\x89PNG"
-    with pytest.raises(ValueError, match="per_page = 0"):
-        write_text_pdf([("p", "hi")], [], tmp_path / "t.pdf", per_page=0)
-    with pytest.raises(ValueError, match=r"lines\[0\] = \('x', 'hi'\)"):
-        write_text_pdf([("x", "hi")], [], tmp_path / "t.pdf")
+    with pytest.raises(ValueError, match=r"blocks\[0\] = \('x', 'hi'\)"):
+        write_report_pdf([("x", "hi")], tmp_path / "t.pdf")
+    with pytest.raises(ValueError, match=r"blocks\[1\] = \('figure', 'not a figure'\)"):
+        write_report_pdf([("p", "hi"), ("figure", "not a figure")], tmp_path / "t.pdf")
+    assert not (tmp_path / "t.pdf").exists()
 
 
 def test_plot_engagement_checks_runs_lockups_and_reference() -> None:

@@ -324,3 +324,70 @@ def test_db_phase_of_an_integrator_and_a_zero() -> None:
     # unwrapped: a delay's phase keeps falling past -180 deg
     _, ph_d = A.db_phase(np.exp(-1j * np.linspace(0.0, 3 * np.pi, 50)))
     assert ph_d[-1] == pytest.approx(-540.0)
+
+
+# -- one Nyquist convention for continuous and sampled loops (issue 19, item 8) ----------------
+
+
+def _true_unstable(loop) -> int:  # type: ignore[no-untyped-def]
+    p = control.feedback(loop, 1).poles()
+    return int(np.sum(np.abs(p) > 1.0)) if loop.dt else int(np.sum(p.real > 0))
+
+
+@pytest.mark.parametrize("k", [0.5, 2.0, 10.0, 30.0])
+def test_nyquist_integrator_loop_counts_alike_continuous_and_sampled(k):
+    """L = k/(s(s+1)): its closed loop is stable for every k > 0; its ZOH samples are stable up to a
+    gain that falls with the sample period. The integrator (s = 0, z = 1) lies on the boundary
+    in both forms and counts as stable (P = 0) in both; N, and Z = N + P, follow the closed loop.
+    (python-control's own count of the sampled loop depends on the round-off of the pole at z = 1:
+    -1 for dt = 0.1.)"""
+    Lc = control.tf([k], [1.0, 1.0, 0.0])
+    nc = A.nyquist_data(Lc)
+    assert (nc.encirclements, nc.open_loop_unstable_poles, nc.closed_loop_unstable_poles) == (
+        0, 0, 0
+    )  # fmt: skip
+    assert nc.boundary_poles == 1 and nc.dt is None
+    # the same as python-control's continuous count (indentation to the right)
+    assert nc.encirclements == control.nyquist_response(Lc, warn_encirclements=False).count
+    for dt in (0.1, 0.5):
+        Ld = control.sample_system(Lc, dt, method="zoh")
+        nd = A.nyquist_data(Ld)
+        assert nd.boundary_poles == 1 and nd.open_loop_unstable_poles == 0 and nd.dt == dt
+        assert nd.closed_loop_unstable_poles == _true_unstable(Ld) == nd.closed_loop_unstable_eig
+        if _true_unstable(Ld) == 0:
+            assert nd.encirclements == nc.encirclements == 0
+
+
+def test_nyquist_counts_with_unstable_and_boundary_open_loop_poles():
+    cases = [
+        control.tf([2.0], [1.0, -1.0]),  # P = 1, stabilised: N = -1
+        control.tf([0.5], [1.0, -1.0]),  # P = 1, not stabilised
+        control.tf([1.0, 0.5], [1.0, 0.0, 0.0]),  # double integrator with a lead
+        control.tf([4.0], np.polymul([1, 0], np.polymul([1, 1], [1, 1]))),  # Z = 2
+    ]
+    for Lc in cases:
+        for loop in (Lc, control.sample_system(Lc, 0.1, method="zoh")):
+            n = A.nyquist_data(loop)
+            assert n.closed_loop_unstable_poles == _true_unstable(loop), (Lc, loop.dt)
+            assert n.closed_loop_unstable_eig == n.closed_loop_unstable_poles
+
+
+def test_nyquist_curve_keeps_the_low_frequencies_and_the_plot_shows_them():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    L = control.tf([2.0], [1.0, 1.0, 0.0])
+    n = A.nyquist_data(L)
+    assert n.omega[0] == 0.0 and n.omega[1] < n.contour_shift  # from the indentation on
+    big = max(abs(complex(x, y)) for x, y in zip(n.real, n.imag, strict=True))
+    assert big == pytest.approx(2.0 / n.contour_shift, rel=0.01)  # the integrator at low w
+    fig = n.plot()
+    ax_all, ax_zoom = fig.axes[:2]
+    line = ax_all.get_lines()
+    curve = next(ln for ln in line if ln.get_label() == "L, omega > 0")
+    x, y = curve.get_xdata(), curve.get_ydata()
+    (x0, x1), (y0, y1) = ax_all.get_xlim(), ax_all.get_ylim()
+    assert x0 <= x.min() and x.max() <= x1 and y0 <= y.min() and y.max() <= y1  # nothing clipped
+    assert ax_zoom.get_xlim()[0] < -1.0 < ax_zoom.get_xlim()[1]
+    title = fig.get_suptitle()
+    assert "N = 0" in title and "Z = N + P = 0" in title and "counted stable" in title

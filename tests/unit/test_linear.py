@@ -693,3 +693,99 @@ def test_slip_operating_point_checks_the_physical_ranges() -> None:
             x_c=XC,
             throttle=0.5,  # type: ignore[arg-type]
         )
+
+
+# -- the judder threshold on any model (issue 19, item 6) --------------------------------------
+
+
+def _straddles(op, ctrl, jc) -> None:
+    """The poles at the two ends of the final bracket lie on either side of the boundary."""
+    lo = L.slip_mode_poles(op, ctrl, mu_slope=jc.stable_side)
+    hi = L.slip_mode_poles(op, ctrl, mu_slope=jc.unstable_side)
+    assert np.max(lo.real) < 0 <= np.max(hi.real) + 1e-9 * np.max(np.abs(hi))
+    assert jc.stable_side == pytest.approx(jc.mu_slope_crit + jc.tolerance, rel=1e-12)
+    assert jc.unstable_side == pytest.approx(jc.mu_slope_crit - jc.tolerance, rel=1e-12)
+    assert jc.tolerance <= 1.01 * L.clutch.JUDDER_RTOL * abs(jc.mu_slope_crit)
+
+
+def test_judder_crossing_agrees_with_the_closed_form_on_the_reduced_model():
+    op = _slip()
+    # pedal held: the closed form's DC crossing is exact
+    jc, jt = L.judder_crossing(op, None), L.judder_threshold(op, None)
+    assert jt.which == "dc" and jc.frequency_hz == 0.0
+    assert jc.mu_slope_crit == pytest.approx(jt.mu_slope_crit, rel=2e-6)
+    assert jc.c_crit == pytest.approx(jt.c_crit, rel=2e-6)
+    _straddles(op, None, jc)
+    # law (6): the closed form approximates the shuffle crossing (engine side a near speed source)
+    ctrl = _law6()
+    jc, jt = L.judder_crossing(op, ctrl), L.judder_threshold(op, ctrl)
+    assert jt.which == "shuffle"
+    assert jc.mu_slope_crit == pytest.approx(jt.mu_slope_crit, rel=5e-3)
+    assert jc.frequency_hz == pytest.approx(jt.shuffle_frequency_hz, rel=0.03)
+    _straddles(op, ctrl, jc)
+    d = jc.to_dict()
+    json.dumps(d)
+    assert d["reason"] is None and d["crossing_pole"][0] >= 0
+
+
+def test_judder_crossing_on_the_full_model_against_its_root_locus():
+    """The full model has no closed form; the numeric threshold is the first crossing of the
+    root locus over mu' (here, with the damper friction stuck, the shuffle mode; the report's
+    test covers a point where the disc on the damper spring crosses first, near 70 Hz)."""
+    op = _slip("full")
+    ctrl = _law6("full")
+    with pytest.raises(ValueError, match="reduced model"):
+        L.judder_threshold(op, ctrl)
+    jc = L.judder_crossing(op, ctrl)
+    assert jc.available and jc.mu_slope_crit < 0 and jc.frequency_hz > 1.0
+    _straddles(op, ctrl, jc)
+    # an independent grid (no point on the threshold): the first unstable grid value lies beyond
+    # the threshold, the stable one before it on the near side
+    from drivetrain_ctrl.linear.margins import root_locus
+
+    vals = np.linspace(0.0, 2.0, 37)[1:] * jc.mu_slope_crit * 1.0001
+    rl = root_locus(op, ctrl, parameter="mu_slope", values=list(vals))
+    k = next(i for i, p in enumerate(rl.points) if not p.stable)
+    assert k > 0 and all(p.stable for p in rl.points[:k])
+    assert rl.points[k].value <= jc.mu_slope_crit - jc.tolerance
+    assert rl.points[k - 1].value >= jc.mu_slope_crit + jc.tolerance
+    # the mode that crosses on the grid is the one named
+    p = max(rl.points[k].poles, key=lambda q: q.real)
+    assert abs(p.imag) / (2 * math.pi) == pytest.approx(jc.frequency_hz, rel=0.05)
+
+
+def test_judder_crossing_of_a_sampled_loop():
+    op = _slip()
+    c = pi_controller(
+        P, kp=1e-3, ki=5e-3, reference=sg.constant(170.0), driven_state="omega_primary",
+        dt=0.01, delay_samples=1,
+    )  # fmt: skip
+    jc = L.judder_crossing(op, c)
+    assert jc.available and jc.dt == 0.01 and jc.mu_slope_crit < 0
+    from drivetrain_ctrl.linear.clutch import _sampled_loop_poles
+
+    def radius(mu):
+        return np.max(np.abs(_sampled_loop_poles(L.linearise(op, inputs=("x_c",), mu_slope=mu),
+                                                 op, c)))  # fmt: skip
+
+    assert radius(jc.stable_side) < 1.0 <= radius(jc.unstable_side) + 1e-9
+    assert jc.frequency_note
+
+
+def test_judder_crossing_not_available_says_why():
+    import dataclasses
+
+    op = _slip()
+    ctrl = _law6()
+    # positive feedback: unstable already with constant friction
+    bad = dataclasses.replace(ctrl, lti=control.ss([], [], [], [[-K_R]]))
+    jc = L.judder_crossing(op, bad)
+    assert not jc.available and jc.mu_slope_crit is None and jc.c_crit is None
+    assert "not stable with constant friction" in jc.reason
+    assert jc.summary().startswith("not available: ")
+    # a search that stops before the crossing
+    jc = L.judder_crossing(op, ctrl, search_limit=1e-5)
+    assert not jc.available and "stays stable" in jc.reason and "1e-05" in jc.reason
+    json.dumps(jc.to_dict())
+    with pytest.raises(ValueError, match="rtol"):
+        L.judder_crossing(op, ctrl, rtol=0.0)
