@@ -740,8 +740,7 @@ def report_figures(data: dict[str, Any]) -> dict[str, Figure]:
         f"Slip-mode poles (controller {cname}, {data['inputs']['model']} model); colour: the "
         "parameter's value"
         + (
-            f"\nsampled loop: poles z drawn as ln(z)/dt, frequencies folded below "
-            f"{0.5 / dts:g} Hz"
+            f"\nsampled loop: poles z drawn as ln(z)/dt, frequencies folded below {0.5 / dts:g} Hz"
             if dts
             else ""
         )
