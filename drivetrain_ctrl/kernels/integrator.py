@@ -38,11 +38,12 @@ from .controller import (
     cl_command_cold,
     cl_sample,
     eval_inputs,
+    eval_u_cold,
     n_cl_states,
     set_interval,
 )
 from .decide import DM_TOO_MANY, _dm_work, _mm_alloc, _mm_insert
-from .dopri import dp5_step, full_rhs_call
+from .dopri import dense_coeffs, dense_eval, dp5_step, full_rhs_call
 from .events import (
     MAX_DIP_RETAKES,
     _decide_fast,
@@ -86,6 +87,44 @@ def _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg):
         FM[n_rec, i] = fm[i]
     for i in range(reg.shape[0]):
         RG[n_rec, i] = reg[i]
+
+
+@jit_nonrt
+def _record_grid(T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t_lim, rc, ys, fm, reg, W):
+    """Record the output-grid times ``t_out[io:]`` up to ``t_lim`` from the continuous extension
+    ``rc`` of the step from ``t`` of length ``hh`` (the mode and regions of the step: at an event
+    time, the left limit). ``W = (S, ua, ub, t_ref, nx, Cd, cs, uw, svw)``: the inputs there are
+    evaluated into the work arrays ``uw``, ``svw``. Returns ``(n_rec, io)``."""
+    S, ua, ub, t_ref, nx, Cd, cs, uw, svw = W
+    while io < t_out.shape[0] and t_out[io] <= t_lim:
+        tg = t_out[io]
+        dense_eval(rc, (tg - t) / hh, ys)
+        eval_u_cold(S, ua, ub, tg, t_ref, ys, nx, Cd, cs, svw, uw)
+        _record(T, Y, U, FM, RG, n_rec, tg, ys, uw, fm, reg)
+        U[n_rec, U.shape[1] - 1] = (
+            np.nan if Cd.ci[CI_OUT] < 0 else cl_command_cold(Cd, cs, ys, nx, tg, svw)
+        )
+        n_rec += 1
+        io += 1
+    return n_rec, io
+
+
+@jit_inline
+def _scan_dissipation(Ks, k, off, t, fs, ist):
+    """Second-law scan: the dissipated powers [W] in row ``k`` of ``Ks`` (a stage derivative at
+    time ``t``: the energy columns from ``off`` on are the elements' powers); keeps the most
+    negative in ``fs[8]`` (its time ``fs[9]``, its element ``ist[9]``) and the largest total
+    ``sum |p|`` in ``fs[10]`` (the scale of round-off)."""
+    tot = 0.0
+    for j in range(off, Ks.shape[1]):
+        p = Ks[k, j]
+        tot += abs(p)
+        if p < fs[8]:
+            fs[8] = p
+            fs[9] = t
+            ist[9] = j - off
+    if tot > fs[10]:
+        fs[10] = tot
 
 
 #: log of the smallest error norm the PI step control remembers (1e-4)
@@ -138,6 +177,10 @@ def _advance(
     RG,
     fs,
     ist,
+    t_out,
+    rec_every,
+    rc,
+    ys,
 ):
     """The step loop of :func:`simulate_kernel` within one mode, without reference counting.
 
@@ -146,8 +189,14 @@ def _advance(
     ``ADV_TOO_SMALL``, ``ADV_FULL`` (no room to record a step), ``ADV_STAB`` (the tight stability
     bound is needed before the next step) or ``ADV_STEP``: an accepted step in which a guard
     fired or that ends at a stop time, not yet taken (the caller locates the event or handles the
-    stop, as before). Scalars in ``fs`` = [t, h, log(err_old), h_stab, t_sample, hh, t1, h_next] and
-    ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j, hit_stop] (in and out).
+    stop, as before). Scalars in ``fs`` = [t, h, log(err_old), h_stab, t_sample, hh, t1, h_next,
+    p_min, t_pmin, p_scale] and ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j,
+    hit_stop, io, el_pmin] (in and out; the last three of ``fs`` and the last of ``ist``: the
+    second-law scan of :func:`_scan_dissipation` over the accepted steps' ends, with ``energy``).
+
+    Recording: with an output grid ``t_out`` (non-empty) its times within each step, from the
+    step's continuous extension (``rc``, ``ys`` work arrays; ``io`` the next grid index); else every
+    ``rec_every``-th accepted step.
     """
     t = fs[0]
     h = fs[1]
@@ -160,6 +209,8 @@ def _advance(
     nfev = ist[3]
     n_rec = ist[4]
     stab_exact = ist[5] != 0
+    io = ist[8]
+    grid = t_out.shape[0] > 0
     nxs = nx + n_cl_states(Cd)
     n_dip = 0
     code = ADV_DONE
@@ -170,7 +221,7 @@ def _advance(
         if n_steps >= max_steps:
             code = ADV_MAX_STEPS
             break
-        if n_rec >= T.shape[0]:
+        if n_rec >= T.shape[0] and not grid:
             code = ADV_FULL
             break
         t_stop = t_end
@@ -266,13 +317,25 @@ def _advance(
             ist[7] = 1 if hit_stop else 0
             code = ADV_STEP
             break
+        if grid:
+            if io < t_out.shape[0] and t_out[io] <= t1:
+                dense_coeffs(y, y1, Ks, hh, rc)
+                n_rec, io = _record_grid(
+                    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, rc, ys, fm, reg,
+                    (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
+                )  # fmt: skip
+        if energy:
+            _scan_dissipation(Ks, 6, nxs + 1, t1, fs, ist)
         t = t1
         _accept(y, y1, Ks, g0, g1)
         h = h_next
-        # u, sv hold the inputs and signals at t (from the step's last stage)
-        _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
-        U[n_rec, U.shape[1] - 1] = np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
-        n_rec += 1
+        if not grid and (rec_every == 1 or n_steps % rec_every == 0):
+            # u, sv hold the inputs and signals at t (from the step's last stage)
+            _record(T, Y, U, FM, RG, n_rec, t, y, u, fm, reg)
+            U[n_rec, U.shape[1] - 1] = (
+                np.nan if Cd.ci[CI_OUT] < 0 else cl_command(Cd, cs, y, nx, t, sv)
+            )
+            n_rec += 1
     fs[0] = t
     fs[1] = h
     fs[2] = lerr_old
@@ -280,6 +343,7 @@ def _advance(
     ist[2] = n_rej
     ist[3] = nfev
     ist[4] = n_rec
+    ist[8] = io
     return code
 
 
@@ -322,8 +386,15 @@ def simulate_kernel(
     cs,
     y_cl0,
     nu,
+    t_out,
+    rec_every,
 ):
     """Run the hybrid simulation (open or closed loop). Returns a tuple of outputs.
+
+    Recorded: with an output grid ``t_out`` (sorted, within [t0, t_end]; non-empty) the state,
+    inputs and modes at exactly those times, from the integrator's continuous extension (at an
+    event time the left limit); else the start, every ``rec_every``-th accepted step and every
+    step that ends at an event or a stop. Events and integrated energies are the same either way.
 
     ``Cd``/``cs``: controller data and its discrete state (see :class:`CtrlData`);
     ``y_cl0``: initial continuous controller states; ``nu``: number of plant inputs (the
@@ -350,9 +421,11 @@ def simulate_kernel(
     Ts = Cd.cf[CF_TS] if Cd.ci[CI_DISC] != 0 else np.inf
     t_sample = t0 if Cd.ci[CI_DISC] != 0 else np.inf
 
-    # room for about 4 samples per h_max (growing by doubling beyond): no copies in a typical run
-    est = 4.0 * (t_end - t0) / h_max + 64.0
-    cap = int(min(max(est, 1024.0), 65536.0))
+    # room for about 4 samples per h_max (growing by doubling beyond): no copies in a typical run;
+    # with an output grid exactly its length
+    grid = t_out.shape[0] > 0
+    est = 4.0 * (t_end - t0) / h_max / rec_every + 64.0
+    cap = t_out.shape[0] if grid else int(min(max(est, 1024.0), 65536.0))
     T = np.empty(cap)
     Y = np.empty((cap, ny))
     U = np.empty((cap, nu + 1))  # last column: the controller command (see cl_command)
@@ -423,24 +496,32 @@ def simulate_kernel(
     nfev += 1
     # g0: the guards at (t, y) in the decided mode, from the decision (_dm_guards)
 
-    T[0] = t
-    Y[0] = y
-    U[0, :nu] = u
-    U[0, nu] = cl_command_cold(Cd, cs, y, nx, t, sv)
-    FM[0] = fm
-    RG[0] = reg
-    n_rec = 1
+    n_rec = 0
+    io = 0
+    if not grid or t_out[0] <= t:
+        T[0] = t
+        Y[0] = y
+        U[0, :nu] = u
+        U[0, nu] = cl_command_cold(Cd, cs, y, nx, t, sv)
+        FM[0] = fm
+        RG[0] = reg
+        n_rec = 1
+        io = 1
     zeno_ring = np.full(zeno_count, -np.inf)
     zeno_pos = 0
     lerr_old = 0.0  # log of the previous step's error norm (PI control)
     fm_old = fm.copy()
     reg_old = reg.copy()
 
-    fs = np.zeros(8)
-    ist = np.zeros(8, dtype=np.int64)
+    fs = np.zeros(11)
+    fs[8] = np.inf
+    ist = np.zeros(10, dtype=np.int64)
+    ist[9] = -1
+    if energy:
+        _scan_dissipation(Ks, 0, nxs + 1, t, fs, ist)
     pending = False  # a step taken here still to be recorded
     while True:
-        if pending:
+        if pending and not grid:
             if n_rec >= T.shape[0]:
                 T, Y, U, FM, RG = _grow(T, Y, U, FM, RG, n_rec)
             # u, sv hold the inputs at (t, y): set by the mode decision at the event or stop
@@ -450,6 +531,7 @@ def simulate_kernel(
             )
             n_rec += 1
             pending = False
+        ist[8] = io
         fs[0] = t
         fs[1] = h
         fs[2] = lerr_old
@@ -502,8 +584,13 @@ def simulate_kernel(
             RG,
             fs,
             ist,
+            t_out,
+            rec_every,
+            rc,
+            ys,
         )
         t = fs[0]
+        io = ist[8]
         h = fs[1]
         lerr_old = fs[2]
         n_steps = ist[1]
@@ -533,6 +620,14 @@ def simulate_kernel(
         hit_stop = ist[7] != 0
         event = j >= 0
         if not event:
+            if grid and io < t_out.shape[0] and t_out[io] <= t1:
+                dense_coeffs(y, y1, Ks, hh, rc)
+                n_rec, io = _record_grid(
+                    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, rc, ys, fm, reg,
+                    (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
+                )  # fmt: skip
+            if energy:
+                _scan_dissipation(Ks, 6, nxs + 1, t1, fs, ist)
             t = t1
             _accept(y, y1, Ks, g0, g1)
         else:
@@ -565,6 +660,12 @@ def simulate_kernel(
                 ys,
                 yhi,
             )
+            if grid and io < t_out.shape[0] and t_out[io] <= t + hi * hh:
+                # the grid up to the event on the step's continuous extension (rc from _locate)
+                n_rec, io = _record_grid(
+                    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t + hi * hh, rc, ys, fm, reg,
+                    (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
+                )  # fmt: skip
             t = t + hi * hh
             y[:] = yhi
         stop = not event and hit_stop and t < t_end
@@ -646,6 +747,8 @@ def simulate_kernel(
             )
             Ks[0, :] = dy
             nfev += 1
+            if energy:
+                _scan_dissipation(Ks, 0, nxs + 1, t, fs, ist)
         h = h_next
         pending = True
 
@@ -671,4 +774,8 @@ def simulate_kernel(
         nfev,
         n_knee,
         n_incons,
+        fs[8],
+        fs[9],
+        ist[9],
+        fs[10],
     )

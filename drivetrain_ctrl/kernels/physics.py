@@ -230,7 +230,8 @@ def forces_into(
                 r = reg[kmu]
                 F *= t_s[kmu, r] * abs(w) + t_o[kmu, r]
             if D.f_eps[f] > 0.0:
-                F *= np.tanh(w / D.f_eps[f])
+                # smoothed law (comparison only, no open mode): a negative capacity gives none
+                F = F * np.tanh(w / D.f_eps[f]) if F > 0.0 else 0.0
             elif m == SLIP_NEG:
                 F = -F
             if pw:
@@ -476,8 +477,8 @@ def guard_element(D: ChainData, j: int) -> int:
 def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) -> None:
     """Guard values (>= 0 while the mode holds) into ``g``.
 
-    Layout: one per friction element (slip: ``s w``; stuck: static capacity - ``|lam|``;
-    open: ``-capacity``), then two per table (distance to the lower and upper bound of the
+    Layout: one per friction element (slip: ``min(s w, capacity)``: it stops slipping or opens;
+    stuck: static capacity - ``|lam|``; open: ``-capacity``), then two per table (distance to the lower and upper bound of the
     current region; ``+inf`` where there is none).
     """
     tau = np.empty(D.M.shape[0])
@@ -529,10 +530,10 @@ def guards_given_forces(
             g[f] = D.f_static[f] * cap - abs(lam)
         elif D.f_eps[f] > 0.0:
             g[f] = np.inf
-        elif m == SLIP_POS:
-            g[f] = w
         else:
-            g[f] = -w
+            # slipping: the slip speed reaching 0, or the capacity reaching 0 (then open)
+            sw = w if m == SLIP_POS else -w
+            g[f] = sw if sw < cap else cap
     for k in range(D.t_nb.shape[0]):
         lo = nf + 2 * k
         kind = D.t_kind[k]
@@ -563,7 +564,7 @@ def kinetic_torque(D: ChainData, f: int, x: F64, u: F64, fm: I64, reg: I64) -> f
     w = rel_speed(D, f, x)
     F = capacity(D, f, u, reg) * mu_ratio(D, f, x, reg)
     if D.f_eps[f] > 0.0:
-        return F * np.tanh(w / D.f_eps[f])
+        return F * np.tanh(w / D.f_eps[f]) if F > 0.0 else 0.0
     return F if fm[f] == SLIP_POS else -F
 
 

@@ -15,10 +15,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -41,6 +43,7 @@ __all__ = [
     "Event",
     "ZenoError",
     "InputRangeError",
+    "SecondLawError",
     "simulate",
 ]
 
@@ -49,6 +52,20 @@ F64 = NDArray[np.float64]
 
 class ZenoError(RuntimeError):
     """Events accumulate (Zeno behaviour): the run was stopped."""
+
+
+class SecondLawError(RuntimeError):
+    """An element's dissipated power is clearly negative (it supplies energy): a modelling error
+    (``SimulationOptions(second_law="raise")``)."""
+
+
+#: what :class:`SimulationOptions` ``second_law`` may ask for
+SECOND_LAW_ACTIONS = ("warn", "raise", "ignore")
+
+#: a dissipated power counts as clearly negative below ``-SECOND_LAW_RTOL`` times the run's
+#: largest total dissipated power (plus 1e-12 W): round-off of a slip speed located to zero at an
+#: event is far below it
+SECOND_LAW_RTOL = 1e-9
 
 
 class InputRangeError(ValueError):
@@ -74,6 +91,14 @@ class SimulationOptions:
     as an event here, so that crossings repeating at one instant stop the run at once).
     smoothing [rad/s or m/s]: replace every Coulomb law ``k sgn(w)`` by ``k tanh(w / smoothing)``
     (no stick: for comparison only; the default ``None`` is the exact switching model).
+    record_every: record every k-th accepted step (the start, the end and every step that ends
+    at an event or an input breakpoint are always recorded); events and integrated energies are
+    exact either way, figures taken from the samples (extrema) are of the samples kept. For a
+    fixed output grid instead, give ``simulate(..., t_eval=...)``.
+    second_law: what a clearly negative dissipated power does (an element that supplies energy,
+    a modelling error): ``"warn"`` (a ``RuntimeWarning`` naming the element and the time; the
+    default), ``"raise"`` (:class:`SecondLawError`) or ``"ignore"``. The most negative power of
+    the run is in ``res.stats["dissipation_min_W"]`` either way (needs ``energy``).
     """
 
     rtol: float = 1e-8
@@ -87,6 +112,8 @@ class SimulationOptions:
     max_events: int = 100_000
     max_steps: int = 10_000_000
     smoothing: float | None = None
+    record_every: int = 1
+    second_law: str = "warn"
 
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "h_max", "h_init", "tol_w", "zeno_window"):
@@ -114,6 +141,15 @@ class SimulationOptions:
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 2:
                 raise ValueError(f"SimulationOptions.{name} = {v!r}: must be an integer >= 2")
             object.__setattr__(self, name, int(v))
+        v = self.record_every
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise ValueError(f"SimulationOptions.record_every = {v!r}: must be an integer >= 1")
+        object.__setattr__(self, "record_every", int(v))
+        if self.second_law not in SECOND_LAW_ACTIONS:
+            raise ValueError(
+                f"SimulationOptions.second_law = {self.second_law!r}: must be one of "
+                f"{', '.join(map(repr, SECOND_LAW_ACTIONS))}"
+            )
 
 
 class Event(NamedTuple):
@@ -150,6 +186,10 @@ class SimulationResult:
     (``model.power_names()``); ``stats`` (steps, rejected steps, nfev, wall time [s]);
     ``smoothing`` [rad/s or m/s]: the run's tanh smoothing of the Coulomb laws (None: exact
     switching), which the torques computed from the result use too.
+
+    The samples are the integrator's accepted steps (every k-th with
+    ``SimulationOptions(record_every=k)``) or the ``t_eval`` grid the run was given; for values
+    at any other times use :meth:`sample`, not interpolation of the samples.
     """
 
     model: Model
@@ -165,6 +205,8 @@ class SimulationResult:
     stats: dict[str, float] = field(default_factory=dict)
     extras: dict[str, Any] = field(default_factory=dict)
     smoothing: float | None = None
+    #: re-runs the simulation with an output grid (``t_eval``): see :meth:`sample`
+    rerun: Callable[..., SimulationResult] | None = field(default=None, repr=False, compare=False)
 
     def _data(self) -> K.ChainData:
         """The model's arrays as the run used them (with the smoothing, if any)."""
@@ -253,20 +295,53 @@ class SimulationResult:
 
     def stuck_phases(self, element: str = "clutch") -> list[tuple[float, float]]:
         """``(start, end)`` [s] of every stuck phase of friction ``element`` entered from another
-        mode (the end of a phase still running is the end of the run)."""
-        stuck = np.asarray(self.fm[:, self.model.friction_index(element)] == K.STUCK, dtype=np.int8)
-        d = np.diff(stuck)
-        starts = np.flatnonzero(d == 1) + 1  # first stuck sample of a phase entered from slip
-        ends = np.flatnonzero(d == -1) + 1  # first sample after a phase
+        mode (the end of a phase still running is the end of the run); from the event list, so
+        exact whatever was recorded."""
+        f = self.model.friction_index(element)
+        if self.smoothing is not None:
+            return []
+        stuck_name = self.model.frictions[f].mode_names[K.STUCK]
+        evs = [e for e in self.events if e.element == element]
+        # the mode at the start: before the first event, else the (constant) recorded one
+        stuck = evs[0].from_mode == stuck_name if evs else bool(self.fm[0, f] == K.STUCK)
+        start: float | None = None
         out: list[tuple[float, float]] = []
-        for i in starts:
-            k = int(np.searchsorted(ends, i))
-            t_end = float(self.t[ends[k]]) if k < ends.shape[0] else float(self.t[-1])
-            out.append((float(self.t[i]), t_end))
+        for e in evs:
+            now = e.to_mode == stuck_name
+            if now and not stuck:
+                start = e.t
+            elif stuck and not now and start is not None:
+                out.append((start, e.t))
+                start = None
+            stuck = now
+        if start is not None:
+            out.append((start, self.t_last))
         return out
 
-    def to_dataframe(self) -> pd.DataFrame:
+    def sample(self, t: Any) -> SimulationResult:
+        """The run at times ``t`` [s] (any order; within the run), exact to the integrator's
+        accuracy: the same run again, recording the integrator's continuous extension at ``t``
+        (same steps, same events). At an event time the value is the left limit (the state and
+        modes just before the event's decision). Returns a :class:`SimulationResult` whose
+        samples are ``t`` (sorted, duplicates kept once)."""
+        if self.rerun is None:
+            raise ValueError("this result cannot be re-sampled (it was not made by simulate())")
+        tt = np.unique(_check_times(t, "sample: t", self.t0, self.t_last))
+        return self.rerun(t_eval=tt)
+
+    @property
+    def t0(self) -> float:
+        """Start time of the run [s]."""
+        return float(self.stats.get("t0", self.t[0]))
+
+    @property
+    def t_last(self) -> float:
+        """Time the run reached [s] (``t_end`` unless it stopped early)."""
+        return float(self.stats.get("t_last", self.t[-1]))
+
+    def to_dataframe(self, t: Any = None) -> pd.DataFrame:
         """Samples as a pandas DataFrame; column names carry units, e.g. ``omega_engine [rad/s]``.
+        With ``t`` [s], the values at those times (:meth:`sample`) instead of the recorded steps.
 
         Coupling torques ``T_<coupling>`` are in the frame of the coupling's upstream body (e.g.
         ``T_axle``: the secondary shaft's); a coupling with a ratio also has ``T_<coupling>_out``,
@@ -275,6 +350,8 @@ class SimulationResult:
         chain gives units (the drivetrain: throttle [-], pedal [m], brake [N m])."""
         import pandas as pd
 
+        if t is not None:
+            return self.sample(t).to_dataframe()
         cols: dict[str, Any] = {"t [s]": self.t}
         for j, (nm, un) in enumerate(
             zip(self.model.state_names, self.model.state_units, strict=True)
@@ -435,6 +512,43 @@ def _raise_non_finite(model: Model, T: F64, Y: F64, nx: int, nxs: int) -> None:
     )
 
 
+def _check_times(t: Any, what: str, t0: float, t1: float) -> F64:
+    """``t`` as a 1-D float array of finite times within ``[t0, t1]`` [s], or a ValueError
+    naming ``what`` and the offending value."""
+    try:
+        a = np.atleast_1d(np.asarray(t, dtype=float))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{what} = {t!r}: must be times [s] ({exc})") from None
+    if a.ndim != 1 or a.shape[0] == 0:
+        raise ValueError(f"{what}: must be a non-empty 1-D array of times [s], got shape {a.shape}")
+    bad = np.flatnonzero(~np.isfinite(a) | (a < t0) | (a > t1))
+    if bad.shape[0]:
+        k = int(bad[0])
+        raise ValueError(
+            f"{what}[{k}] = {float(a[k])!r} [s]: must be finite and within the run [{t0:g}, {t1:g}] s"
+        )
+    return np.ascontiguousarray(a)
+
+
+def _second_law(
+    model: Model, action: str, p_min: float, t: float, col: int, p_scale: float
+) -> None:
+    """Act on the run's most negative dissipated power ``p_min`` [W] (element ``col`` of
+    ``model.power_names()``, at ``t`` [s]) if it is clearly negative (below
+    ``-SECOND_LAW_RTOL * p_scale - 1e-12`` W)."""
+    if action == "ignore" or p_min >= -(SECOND_LAW_RTOL * p_scale + 1e-12):
+        return
+    msg = (
+        f"second law violated: element {model.power_names()[col]!r} dissipates {p_min:.6g} W "
+        f"at t = {t:.9g} s (it supplies energy; the run's largest total dissipated power is "
+        f"{p_scale:.6g} W). A friction capacity or a damping below zero? "
+        "(res.stats['dissipation_min_W'])"
+    )
+    if action == "raise":
+        raise SecondLawError(msg)
+    warnings.warn(msg, RuntimeWarning, stacklevel=3)
+
+
 def _signals_for(model: Model, inputs: Mapping[str, Signal | float]) -> list[Signal]:
     if not isinstance(inputs, Mapping):
         raise TypeError(
@@ -474,13 +588,16 @@ def simulate(
     raise_on_zeno: bool = True,
     controller: Any = None,
     controller_initial: float = 0.0,
+    t_eval: Any = None,
 ) -> SimulationResult:
     """Simulate ``model`` from state ``x0`` at ``t0`` [s] to ``t_end`` [s] with input signals.
 
     ``inputs`` maps every input name of the model to a :class:`Signal` (or a constant); with a
     ``controller`` (:class:`~drivetrain_ctrl.control.blocks.Controller`) the input it drives is
     computed in the loop and must not be given; ``controller_initial`` is its initial value (e.g.
-    the actuator position [m]). Returns a
+    the actuator position [m]). ``t_eval`` [s]: record the run at exactly these times (increasing,
+    within ``[t0, t_end]``), from the integrator's continuous extension, instead of at its
+    steps (the steps and events are the same). Returns a
     :class:`SimulationResult`; raises :class:`ZenoError` if events accumulate (unless
     ``raise_on_zeno=False``, then the partial result has ``status == 'zeno'``).
 
@@ -521,6 +638,22 @@ def simulate(
         raise ValueError(f"x0 has non-finite values in {bad}")
     if not t_end > t0:
         raise ValueError(f"t_end = {t_end!r} must be > t0 = {t0!r} [s]")
+    if t_eval is None:
+        t_out = np.zeros(0)
+    else:
+        t_out = _check_times(t_eval, "t_eval", float(t0), float(t_end))
+        if t_out.shape[0] > 1 and not np.all(np.diff(t_out) > 0):
+            k = int(np.flatnonzero(np.diff(t_out) <= 0)[0])
+            raise ValueError(
+                f"t_eval must be strictly increasing: t_eval[{k + 1}] = {float(t_out[k + 1])!r} follows "
+                f"{float(t_out[k])!r} [s]"
+            )
+        if opts.record_every != 1:
+            raise ValueError(
+                f"SimulationOptions.record_every = {opts.record_every} with t_eval: give one "
+                "of them (t_eval records exactly its times)"
+            )
+    inputs_given = inputs
     if t_end - t0 > opts.max_steps * opts.h_max:
         raise ValueError(
             f"t_end = {t_end!r} s: a run of {t_end - t0:g} s cannot finish within "
@@ -590,10 +723,13 @@ def simulate(
         cs,
         y_cl0,
         len(model.input_names),
+        t_out,
+        opts.record_every,
     )
     wall = time.perf_counter() - tic
     (T, Y, U, FM, RG, evt, evel, evf, evto, status, status_el) = out[:11]
-    (t_last, nsteps, nrej, nfev, nknee, nincons) = out[11:]
+    (t_last, nsteps, nrej, nfev, nknee, nincons) = out[11:17]
+    (p_min, t_pmin, el_pmin, p_scale) = out[17:]
     nx = model.nx
     nu = len(model.input_names)
     nxs = nx + y_cl0.shape[0]
@@ -620,12 +756,31 @@ def simulate(
             # decisions where no mode combination was consistent (least inconsistent taken)
             "inconsistent_decisions": int(nincons),
             "wall_time_s": wall,
+            "t0": float(t0),
+            "t_last": float(t_last),
+            # second law: the most negative dissipated power of any element at the accepted
+            # steps' ends [W] (nan without energy integration)
+            "dissipation_min_W": float(p_min) if opts.energy and el_pmin >= 0 else math.nan,
         },
         extras={"controller_states": Y[:, nx:nxs], "controller_command": U[:, nu]}
         if controller is not None
         else {},
         smoothing=opts.smoothing,
+        rerun=functools.partial(
+            simulate,
+            model,
+            x0,
+            inputs_given,
+            t_end=t_end,
+            t0=t0,
+            options=dataclasses.replace(opts, record_every=1),
+            raise_on_zeno=raise_on_zeno,
+            controller=controller,
+            controller_initial=controller_initial,
+        ),
     )
+    if opts.energy and el_pmin >= 0:
+        _second_law(model, opts.second_law, float(p_min), float(t_pmin), int(el_pmin), p_scale)
     if stat == "zeno" and raise_on_zeno:
         name = _element_mode_name(model, int(status_el), 0)[0] if status_el >= 0 else "?"
         raise ZenoError(

@@ -216,7 +216,7 @@ def test_inconsistent_decisions_are_reported_not_silent(monkeypatch: pytest.Monk
 
     def kernel_with_bad_decisions(*args: object) -> tuple:
         out = real(*args)
-        return (*out[:-1], 3)  # the last output: the count of inconsistent decisions
+        return (*out[:16], 3, *out[17:])  # output 16: the count of inconsistent decisions
 
     monkeypatch.setattr(S.K, "simulate_kernel", kernel_with_bad_decisions)
     with pytest.warns(RuntimeWarning, match=r"^3 mode decision\(s\) found no consistent"):

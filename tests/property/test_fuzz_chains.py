@@ -1,0 +1,304 @@
+"""Random-chain fuzzing of the switching simulator (issue 19, item 3).
+
+Random chains of 2 to 6 bodies (rotational and translational), couplings with ratios, linear and
+piecewise springs with and without backlash, dampers, frictions with static ratios > 1 and mu
+tables, ground frictions, lagged sources, and input signals (steps, ramps, sines, tables),
+including capacity inputs that cross zero. For every draw the run ends normally or with a
+documented error (:class:`ZenoError`, :class:`InputRangeError`, the step-size stop), never a
+crash, a hang or a NaN; the energy residual is <= 1e-6; no element dissipates a clearly negative
+power; and every recorded mode is consistent with the guards at its sample.
+
+Two profiles: a fast one in the default run, a longer one marked slow.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from drivetrain_ctrl import signals as sg
+from drivetrain_ctrl.core.tables import PwlTable
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction, LaggedSource, Spring
+from drivetrain_ctrl.plant.model import Mode, Model
+from drivetrain_ctrl.sim.simulator import (
+    InputRangeError,
+    SimulationOptions,
+    ZenoError,
+    simulate,
+)
+
+#: largest step of the fuzzed runs [s]. The state at a located event comes from the step's
+#: continuous extension (4th order, its error not under rtol): on a stiff random chain with many
+#: events that error, not the tolerance, sets the energy residual's floor (the shrunk case
+#: test_energy_floor_at_events_known below reaches 1.0e-6 at the default h_max of 1 ms)
+FUZZ_H_MAX = 5e-4
+
+#: the documented ways a run may stop early (anything else is a bug)
+STEP_TOO_SMALL = "the step size fell below"
+
+real = st.floats(allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def mu_tables(draw: Any) -> PwlTable | None:
+    """mu(|w|)/mu(0): none, or falling / rising over a few rad/s (m/s)."""
+    if not draw(st.booleans()):
+        return None
+    x1 = draw(st.floats(0.5, 20.0))
+    y1 = draw(st.floats(0.5, 1.3))
+    return PwlTable(x=(0.0, x1), y=(1.0, y1))
+
+
+@st.composite
+def frictions(draw: Any, name: str, inputs: list[str]) -> Friction:
+    """A friction element; with a capacity input (its own, drawn later as a signal that may
+    cross zero) about half the time, through a table that may go negative."""
+    scale = draw(st.floats(0.1, 20.0))
+    static = draw(st.floats(1.0, 1.6))
+    cap_input = None
+    table = None
+    if draw(st.booleans()):
+        cap_input = f"fn_{name}"
+        inputs.append(cap_input)
+        if draw(st.booleans()):
+            table = PwlTable(x=(0.0, 1.0), y=(draw(st.floats(-0.5, 0.5)), 1.0))
+    return Friction(
+        scale=scale,
+        capacity_input=cap_input,
+        capacity_table=table,
+        static_ratio=static,
+        mu_table=draw(mu_tables()),
+        name=name,
+    )
+
+
+@st.composite
+def springs(draw: Any, name: str) -> Spring:
+    k1 = draw(st.floats(1.0, 2000.0))
+    backlash = draw(st.sampled_from([0.0, 0.0, draw(st.floats(0.001, 0.05))]))
+    if draw(st.booleans()):
+        return Spring.linear(k1, backlash=backlash, name=name)
+    # piecewise: a soft first stage, then stiffer
+    x1 = draw(st.floats(0.005, 0.2))
+    k2 = k1 * draw(st.floats(1.0, 10.0))
+    return Spring((0.0, x1, x1 + 1.0), (0.0, k1 * x1, k1 * x1 + k2), backlash, name)
+
+
+@st.composite
+def signals(draw: Any, *, capacity: bool) -> sg.Signal:
+    """An input signal: a step, a ramp, a sine, a table or a constant. Capacity inputs are
+    offset sines or tables that may cross zero (and come back)."""
+    kind = draw(st.sampled_from(["constant", "step", "ramp", "sine", "table"]))
+    amp = draw(st.floats(0.1, 2.0 if capacity else 50.0))
+    if kind == "constant":
+        s = sg.constant(draw(st.floats(-amp, amp)))
+    elif kind == "step":
+        s = sg.step(draw(st.floats(0.0, 1.0)), draw(st.floats(-amp, amp)), initial=0.0)
+    elif kind == "ramp":
+        t0 = draw(st.floats(0.0, 0.5))
+        s = sg.ramp(t0, t0 + draw(st.floats(0.05, 1.0)), 0.0, draw(st.floats(-amp, amp)))
+    elif kind == "sine":
+        s = sg.sine(amp, draw(st.floats(0.5, 30.0)))
+    else:
+        ts = sorted(draw(st.lists(st.floats(0.0, 1.0), min_size=2, max_size=4, unique=True)))
+        s = sg.table(ts, [draw(st.floats(-amp, amp)) for _ in ts])
+    if capacity:
+        s = s + draw(st.floats(-0.5, 2.0))  # an offset: crosses zero or not
+    return s
+
+
+@st.composite
+def cases(draw: Any) -> tuple[Model, np.ndarray, dict[str, sg.Signal], float]:
+    n = draw(st.integers(2, 6))
+    inputs: list[str] = []
+    kinds = ["rotational"] * n
+    # a translational tail (the vehicle): the last bodies may be translational
+    n_trans = draw(st.integers(0, 2 if n > 2 else 1))
+    for i in range(n - n_trans, n):
+        kinds[i] = "translational"
+    bodies = []
+    for i in range(n):
+        gf = draw(frictions(f"g{i}", inputs)) if draw(st.integers(0, 3)) == 0 else None
+        tin = None
+        if draw(st.booleans()):
+            tin = f"T{i}"
+            inputs.append(tin)
+        bodies.append(
+            Body(
+                f"b{i}",
+                draw(st.floats(0.05, 5.0)) * (100.0 if kinds[i] == "translational" else 1.0),
+                kind=kinds[i],
+                viscous=draw(st.sampled_from([0.0, draw(st.floats(0.0, 0.5))])),
+                quadratic=draw(st.sampled_from([0.0, draw(st.floats(0.0, 0.05))])),
+                load=draw(st.sampled_from([0.0, draw(st.floats(-20.0, 20.0))])),
+                ground_friction=gf,
+                torque_input=tin,
+            )
+        )
+    couplings = []
+    for c in range(n - 1):
+        rot_to_trans = kinds[c] == "rotational" and kinds[c + 1] == "translational"
+        ratio = draw(st.floats(1.0, 5.0)) if rot_to_trans else draw(st.floats(0.3, 3.0))
+        spring = draw(springs(f"k{c}")) if draw(st.integers(0, 2)) > 0 else None
+        fr = draw(frictions(f"f{c}", inputs)) if draw(st.booleans()) or spring is None else None
+        damper = draw(st.sampled_from([0.0, draw(st.floats(0.0, 2.0))]))
+        couplings.append(Coupling(f"c{c}", ratio=ratio, spring=spring, damper=damper, friction=fr))
+    sources = []
+    if draw(st.booleans()):
+        sources.append(
+            LaggedSource(
+                "src", body="b0", input="drive", tau=draw(st.floats(0.005, 0.2)),
+                gain=draw(st.floats(0.5, 50.0)),
+            )
+        )  # fmt: skip
+        inputs.append("drive")
+    chain = Chain(tuple(bodies), tuple(couplings), tuple(sources), inputs=tuple(inputs))
+    model = Model(chain)
+    sig = {nm: draw(signals(capacity=nm.startswith("fn_"))) for nm in inputs}
+    x0 = np.zeros(model.nx)
+    for i in range(n):
+        x0[i] = draw(st.floats(-10.0, 10.0))
+    t_end = draw(st.floats(0.2, 1.5))
+    return model, x0, sig, t_end
+
+
+def _guards_hold(model: Model, res: Any) -> None:
+    """Every recorded sample's modes are consistent with the guards there (>= 0 up to the
+    round-off of a state located at an event)."""
+    for k in range(res.t.shape[0]):
+        mode = Mode(tuple(res.fm[k]), tuple(res.reg[k]))
+        g = model.guards(res.x[k], res.u[k], mode)
+        scale = 1.0 + np.abs(res.x[k]).max() + np.abs(res.u[k]).max(initial=0.0)
+        bad = np.flatnonzero(g < -1e-7 * scale)
+        assert bad.shape[0] == 0, (
+            f"t = {res.t[k]!r}: guards {[model.guard_names()[j] for j in bad]} = {g[bad]} "
+            f"violated in mode {model.mode_names(mode)}; chain {model.chain!r}"
+        )
+
+
+def check_case(case: tuple[Model, np.ndarray, dict[str, sg.Signal], float]) -> None:
+    model, x0, sig, t_end = case
+    opts = SimulationOptions(second_law="raise", h_max=FUZZ_H_MAX)
+    with warnings.catch_warnings():
+        # inconsistent decisions are reported as warnings: allowed, but counted in stats
+        warnings.simplefilter("ignore", RuntimeWarning)
+        try:
+            res = simulate(model, x0, sig, t_end=t_end, options=opts)
+        except (ZenoError, InputRangeError):
+            return
+        except RuntimeError as exc:
+            if STEP_TOO_SMALL in str(exc):
+                return
+            raise
+    assert res.status == "ok"
+    assert np.isfinite(res.x).all() and np.isfinite(res.dissipated).all()
+    assert res.t[-1] == pytest.approx(t_end, abs=1e-12)
+    # the energy balance, relative to the run's energy scale (at least 1 mJ: a run that stays at
+    # rest, e.g. stuck to ground, has no meaningful relative residual)
+    E = res.stored_energy()
+    resid = abs(E[-1] - E[0] - res.work_in[-1] + res.dissipated[-1].sum())
+    scale = max(abs(res.work_in[-1]), np.abs(E).max(), 1e-3)
+    assert resid <= 1e-6 * scale, (resid, scale, res.energy_residual_rel)
+    if res.stats["inconsistent_decisions"] == 0:
+        # a decision that found no consistent combination took the least inconsistent one and
+        # said so (a RuntimeWarning and the count): its guards may be violated by design. Known
+        # cause: a statically indeterminate stuck set (test_redundant_stuck_set_known_limitation)
+        _guards_hold(model, res)
+
+
+FAST = settings(
+    max_examples=30,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    derandomize=True,
+)
+
+
+@FAST
+@given(cases())
+def test_random_chains_fast(case):
+    check_case(case)
+
+
+@pytest.mark.slow
+@settings(
+    max_examples=1500,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(cases())
+def test_random_chains_long(case):
+    check_case(case)
+
+
+# --- shrunk findings of the fuzzing, kept as regression tests -----------------------------------
+
+
+def _clutch(name: str, scale: float = 1.0) -> Friction:
+    return Friction(scale=scale, name=name)
+
+
+def test_energy_floor_at_events_known():
+    """Shrunk from the long profile: four couplings (two clutches, a soft and a piecewise stiff
+    spring), one body spinning. 91 events in 1 s, each located on the continuous extension of a
+    ~1-ms step: the energy residual is 1.0e-6 of the run's energy at the default h_max and falls
+    with h_max^5 (the extension's order), not with rtol."""
+    bodies = tuple(Body(f"b{i}", 1.0, torque_input=f"T{i}") for i in range(5))
+    couplings = (
+        Coupling("c0", friction=_clutch("f0")),
+        Coupling("c1", spring=Spring.linear(1.0, name="k1")),
+        Coupling(
+            "c2",
+            ratio=2.0,
+            spring=Spring((0.0, 0.0078125, 1.0078125), (0.0, 4.8359375, 4337.8359375), name="k2"),
+        ),
+        Coupling("c3", friction=_clutch("f3")),
+    )
+    m = Model(Chain(bodies, couplings, inputs=tuple(f"T{i}" for i in range(5))))
+    x0 = np.zeros(m.nx)
+    x0[3] = 1.0
+    u = {f"T{i}": 0.0 for i in range(5)}
+
+    def resid(h_max: float) -> float:
+        r = simulate(m, x0, u, t_end=1.0, options=SimulationOptions(h_max=h_max))
+        assert len(r.events) == 91
+        E = r.stored_energy()
+        return abs(E[-1] - E[0] - r.work_in[-1] + r.dissipated[-1].sum()) / 0.5
+
+    assert 5e-7 < resid(1e-3) < 2e-6
+    assert resid(FUZZ_H_MAX) < 1e-7
+    assert resid(1e-4) < 1e-9
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limitation: a statically indeterminate stuck set (a body held by two paths) "
+    "gets the least-norm stuck torques, not a distribution within the capacities; the decision "
+    "then reports itself inconsistent",
+)
+def test_redundant_stuck_set_decided_within_capacities():
+    """Shrunk from the long profile: b2 is held to ground by g2 and, through clutch f2, by b3's
+    ground friction g3; slipping clutch f1 drives b2 with 1.5 N m. All stuck is consistent
+    (g2 takes 1 N m, f2 0.5 N m) but the least-norm distribution loads f2 beyond its 0.5 N m."""
+    g = lambda n: Friction(scale=1.0, name=n)  # noqa: E731
+    bodies = (
+        Body("b0", 1.0),
+        Body("b1", 1.0),
+        Body("b2", 1.0, ground_friction=g("g2")),
+        Body("b3", 1.0, ground_friction=g("g3")),
+    )
+    couplings = (
+        Coupling("c0", friction=_clutch("f0")),
+        Coupling("c1", ratio=3.0, friction=_clutch("f1", 0.5)),
+        Coupling("c2", ratio=0.5, friction=_clutch("f2", 0.5)),
+    )
+    m = Model(Chain(bodies, couplings))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = simulate(m, np.array([0.0, 1.0, 0.0, 0.0]), {}, t_end=0.1)
+    assert res.stats["inconsistent_decisions"] == 0
