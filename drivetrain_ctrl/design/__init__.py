@@ -1,4 +1,13 @@
 """Controller design (PI from specifications, robust fixed-structure tuning, H-infinity, stability
-certificates): the room for the next issue; it sits above :mod:`drivetrain_ctrl.linear`."""
+certificates); it sits above :mod:`drivetrain_ctrl.linear` and below reporting.
+
+Every tool takes any python-control LTI plant or a set of them (:mod:`.plants`: an exact input
+delay per plant, automatic frequency grids), so it can be checked on textbook plants; the clutch
+start loop is its first client.
+"""
 
 from __future__ import annotations
+
+from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
+
+__all__ = ["Plant", "PlantSet", "as_plant_set", "frequency_grid"]
