@@ -10,7 +10,14 @@ sub-packages are layers, each importing only those below it: :mod:`~drivetrain_c
 
 from __future__ import annotations
 
-from .control import Actuator, Controller, ControllerSpec, builtin_controllers, load_controller
+from .control import (
+    Actuator,
+    Controller,
+    ControllerSpec,
+    builtin_controllers,
+    load_controller,
+    save_controller,
+)
 from .core import signals
 from .core.tables import PwlTable
 from .linear import (
@@ -88,6 +95,7 @@ __all__ = [
     "root_locus",
     "run_case",
     "run_scenario",
+    "save_controller",
     "signals",
     "simulate",
     "slip_operating_point",

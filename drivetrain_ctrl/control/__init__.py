@@ -1,5 +1,6 @@
 """Controllers as data: the blocks the simulator runs (LTI + explicit nonlinear blocks) and the clutch
-start laws (law (6), PI) declared as :class:`ControllerSpec` and loaded from TOML files."""
+start laws (law (6), PI, any LTI law) declared as :class:`ControllerSpec`, loaded from and saved to
+TOML files."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ from .laws import (
     law6_loop_closed_form,
     load_controller,
     pi_controller,
+    save_controller,
+    spec_from_lti,
 )
 
 __all__ = [
@@ -30,4 +33,6 @@ __all__ = [
     "law6_defaults",
     "law6_loop_closed_form",
     "pi_controller",
+    "save_controller",
+    "spec_from_lti",
 ]

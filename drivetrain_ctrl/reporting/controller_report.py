@@ -171,7 +171,21 @@ def _fmt(v: Any) -> str:
         return str(v)
     if isinstance(v, float):
         return f"{v:.4g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_fmt(x) for x in v) + "]"
     return str(v)
+
+
+def _flat_items(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
+    """``(dotted key, value)`` of a nested table, in its order (the controller's design
+    provenance)."""
+    out: list[tuple[str, Any]] = []
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out += _flat_items(v, f"{prefix}{k}.")
+        else:
+            out.append((f"{prefix}{k}", v))
+    return out
 
 
 def _ranges(values: list[float], digits: str = ".4g") -> str:
@@ -280,10 +294,11 @@ def _sections(
     out: list[tuple[str, list[str], list[tuple[str, list[list[str]]]], list[str]]] = []
 
     # 1 model and operating points
+    ctrl_fields = {k: v for k, v in inp["controller"].items() if k != "design"}
     paras = [
         f"Model: {inp['model']}; parameter set: {inp['params']}; scenario: {inp['scenario']} "
         f"({inp['scenario_description']}); controller: {cname} "
-        f"({', '.join(f'{k} = {_fmt(v)}' for k, v in sorted(inp['controller'].items()) if v is not None)}).",
+        f"({', '.join(f'{k} = {_fmt(v)}' for k, v in sorted(ctrl_fields.items()) if v is not None)}).",
         f"Slip operating point: the simulated trajectory at t = {_fmt(ops['slip']['t_s'])} s "
         f"({_fmt(inp['slip_delay_s'])} s after the controller start).",
         "Lock operating point: "
@@ -294,6 +309,14 @@ def _sections(
         )
         + ".",
     ]
+    design = inp["controller"].get("design")
+    if design:
+        paras.insert(
+            1,
+            "Design (provenance: the controller file's [design] table): "
+            + "; ".join(f"{k} = {_fmt(v)}" for k, v in _flat_items(design))
+            + ".",
+        )
     lk = ops["lock"]
     rows = [["", "slip"] + (["lock"] if lk is not None else [])]
     names = sorted(
