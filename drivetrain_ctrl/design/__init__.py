@@ -8,6 +8,16 @@ start loop is its first client.
 
 from __future__ import annotations
 
+from drivetrain_ctrl.design.pi import PIDesign, design_pi, pi_controller_tf, pi_gains_at
 from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
 
-__all__ = ["Plant", "PlantSet", "as_plant_set", "frequency_grid"]
+__all__ = [
+    "Plant",
+    "PlantSet",
+    "as_plant_set",
+    "frequency_grid",
+    "PIDesign",
+    "design_pi",
+    "pi_controller_tf",
+    "pi_gains_at",
+]
