@@ -8,6 +8,7 @@ start loop is its first client.
 
 from __future__ import annotations
 
+from drivetrain_ctrl.design.clutch import ClutchPlantSet, clutch_plant_set
 from drivetrain_ctrl.design.pi import PIDesign, design_pi, pi_controller_tf, pi_gains_at
 from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
 
@@ -20,4 +21,6 @@ __all__ = [
     "design_pi",
     "pi_controller_tf",
     "pi_gains_at",
+    "ClutchPlantSet",
+    "clutch_plant_set",
 ]
