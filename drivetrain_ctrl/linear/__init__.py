@@ -31,6 +31,7 @@ from .linearisation import (
     linearise_visited_modes,
     natural_frequency_damping,
     oscillatory_poles,
+    ss_to_tf,
     trim_tf,
 )
 from .margins import (
@@ -66,6 +67,7 @@ __all__ = [
     "LinearisationParts",
     "linearisation_parts",
     "linearise",
+    "ss_to_tf",
     "trim_tf",
     "VisitedMode",
     "linearise_visited_modes",

@@ -9,6 +9,7 @@ from typing import Any
 
 import control
 import numpy as np
+import scipy.signal
 from numpy.typing import NDArray
 
 from .. import kernels as K
@@ -228,6 +229,27 @@ def linearise(
     )
 
 
+def ss_to_tf(sys: control.StateSpace) -> control.TransferFunction:
+    """``control.tf(sys)`` computed by scipy (``scipy.signal.ss2tf``, one input column at a time),
+    names and sample time kept. With slycot installed python-control converts through slycot's
+    ``tb04ad``, which on the 11-state clutch loop loses digits (a denominator coefficient 6000
+    came out as 5999.998); scipy's characteristic-polynomial route keeps them."""
+    A = np.asarray(sys.A, dtype=float)
+    B = np.asarray(sys.B, dtype=float)
+    C = np.asarray(sys.C, dtype=float)
+    D = np.asarray(sys.D, dtype=float)
+    nums: list[list[Any]] = [[None] * sys.ninputs for _ in range(sys.noutputs)]
+    dens: list[list[Any]] = [[None] * sys.ninputs for _ in range(sys.noutputs)]
+    for j in range(sys.ninputs):
+        num, den = scipy.signal.ss2tf(A, B, C, D, input=j)
+        for i in range(sys.noutputs):
+            nums[i][j] = np.trim_zeros(np.atleast_1d(num[i]), "f") if np.any(num[i]) else [0.0]
+            dens[i][j] = den
+    return control.tf(
+        nums, dens, sys.dt, inputs=sys.input_labels, outputs=sys.output_labels, name=sys.name
+    )
+
+
 def trim_tf(sys: Any) -> control.TransferFunction:
     """``control.tf(sys)`` with the exact leading zeros of each numerator restored.
 
@@ -240,10 +262,11 @@ def trim_tf(sys: Any) -> control.TransferFunction:
     ``C A^(k-1) B`` within ``1e-12 |C| |A|^(k-1) |B|``, with element-wise absolute values: its
     round-off scale) and the coefficient itself is below ``1e-6`` of the numerator's largest.
     Transfer functions and systems without state pass through ``control.tf`` unchanged; names and
-    the sample time are kept."""
-    tf = control.tf(sys)
+    the sample time are kept. The conversion is scipy's (:func:`ss_to_tf`), whether slycot is
+    installed or not."""
     if not isinstance(sys, control.StateSpace) or sys.nstates == 0:
-        return tf
+        return control.tf(sys)
+    tf = ss_to_tf(sys)
     A = np.asarray(sys.A, dtype=float)
     B = np.asarray(sys.B, dtype=float)
     C = np.asarray(sys.C, dtype=float)
