@@ -11,6 +11,14 @@ from __future__ import annotations
 from drivetrain_ctrl.design.clutch import ClutchPlantSet, clutch_plant_set
 from drivetrain_ctrl.design.pi import PIDesign, design_pi, pi_controller_tf, pi_gains_at
 from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
+from drivetrain_ctrl.design.robust import (
+    InfeasibleSpecError,
+    RobustSpec,
+    RobustTuning,
+    UnboundedSpecError,
+    robust_pi,
+    robust_pid,
+)
 
 __all__ = [
     "Plant",
@@ -23,4 +31,10 @@ __all__ = [
     "pi_gains_at",
     "ClutchPlantSet",
     "clutch_plant_set",
+    "RobustSpec",
+    "RobustTuning",
+    "InfeasibleSpecError",
+    "UnboundedSpecError",
+    "robust_pi",
+    "robust_pid",
 ]
