@@ -319,25 +319,62 @@ def _phase_range(P: complex, F: complex) -> tuple[float, float]:
     return a, b
 
 
-def _reachable_up_to(p: Plant, F_of: Any, pm: float, grid: F64) -> float | None:
-    """The highest grid frequency [rad/s] where ``pm`` is reachable with ``kp, ki >= 0``."""
+def _reachable_up_to(p: Plant, F_of: Any, pm: float, grid: F64, wc: float) -> float | None:
+    """The upper edge [rad/s] of the band of crossovers below ``wc`` where ``pm`` is reachable
+    with ``kp, ki >= 0`` (None: nowhere below ``wc`` on the grid)."""
 
     def margin_of_gains(x: F64) -> F64:
         kp, ki = _gains(_target(p.freqresp(x), pm), F_of(x))
         return np.where(np.isfinite(kp) & np.isfinite(ki), np.minimum(kp, ki), -np.inf)
 
-    g = margin_of_gains(grid)
+    below = grid[grid < wc]
+    g = margin_of_gains(below)
     ok = np.flatnonzero(g >= 0)
     if not ok.size:
         return None
     k = int(ok[-1])
-    if k + 1 < grid.size and np.isfinite(g[k + 1]):  # the edge between two grid points
+    hi = below[k + 1] if k + 1 < below.size else wc
+    g_hi = float(margin_of_gains(np.array([hi]))[0])
+    if np.isfinite(g_hi) and g_hi < 0:  # the edge between two grid points
         return float(
-            scipy.optimize.brentq(
-                lambda x: float(margin_of_gains(np.array([x]))[0]), grid[k], grid[k + 1]
-            )
+            scipy.optimize.brentq(lambda x: float(margin_of_gains(np.array([x]))[0]), below[k], hi)
         )
-    return float(grid[k])
+    return float(below[k])
+
+
+def _stable_mask(p: Plant, kp: F64, ki: F64, meth: str, pade_order: int) -> NDArray[np.bool_]:
+    """Closed-loop stability of many PIs at once: the eigenvalues of the loop's state matrix
+    (the plant's rational model, :meth:`Plant.with_pade`, and the integrator state), stacked.
+
+    With ``u = ki xi + kpe e``, ``e = -y`` and ``xi' = e`` (discrete: ``xi+ = xi + Ts e``; the
+    backward and Tustin integrators are the forward one with ``kpe = kp + ki Ts`` and
+    ``kp + ki Ts/2``), the state matrix is affine in the gains up to ``g = 1/(1 + kpe D)``.
+    A screen for the scan; the chosen design is re-checked with python-control."""
+    G = control.ss(p.with_pade(pade_order))
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (G.A, G.B, G.C, G.D))
+    n = A.shape[0]
+    dt = p.dt
+    gamma = {"continuous": 0.0, "forward": 0.0, "backward": 1.0, "tustin": 0.5}[meth]
+    kpe = kp + gamma * ki * dt
+    d = float(D[0, 0])
+    out = np.zeros(kp.shape, dtype=bool)
+    for chunk in np.array_split(np.arange(kp.size), max(1, kp.size // 2000)):
+        if not chunk.size:
+            continue
+        g = 1.0 / (1.0 + kpe[chunk] * d)
+        M = np.zeros((chunk.size, n + 1, n + 1))
+        if n:
+            M[:, :n, :n] = A[None] - (g * kpe[chunk])[:, None, None] * (B @ C)[None]
+            M[:, :n, n] = (g * ki[chunk])[:, None] * B[:, 0][None]
+            M[:, n, :n] = -g[:, None] * C[0][None] * (dt if dt else 1.0)
+        corner = -g * ki[chunk] * d
+        M[:, n, n] = 1.0 + dt * corner if dt else corner
+        ev = np.linalg.eigvals(M)
+        if dt:
+            out[chunk] = np.all(np.abs(ev) < 1.0 - 1e-12, axis=1)
+        else:
+            out[chunk] = np.all(ev.real < -1e-12 * np.maximum(1.0, np.abs(ev)), axis=1)
+    return out
 
 
 def design_pi(
@@ -474,12 +511,12 @@ def _at_crossover(
         f"there is {arg_p:.4g} deg, so a PI reaches phase margins from {lo:.4g} to {hi:.4g} "
         f"deg at this crossover; the closest design is {edge} with {pms[k]:.4g} deg"
     )
-    top = _reachable_up_to(p, F_of, pm, w[w > 0])
+    top = _reachable_up_to(p, F_of, pm, w[w > 0], wc)
     if k == 0:
         msg += (
             f"; {pm:g} deg is reachable with a PI at crossovers up to {top:.4g} rad/s"
             if top is not None
-            else f"; {pm:g} deg is not reachable with a PI at any crossover on the grid"
+            else f"; {pm:g} deg is not reachable with a PI at any crossover below wc on the grid"
         )
     return kp, ki, False, msg, "given crossover"
 
@@ -520,8 +557,12 @@ def _scan(
         return WC, PM, kp, ki, np.where(ok, peak, np.inf)
 
     def admissible(kp: F64, ki: F64, peak: F64) -> NDArray[np.bool_]:
-        ok = np.isfinite(kp) & np.isfinite(ki) & (kp >= 0) & (ki >= 0)
-        return ok & (peak <= ms) if ms is not None else ok
+        ok = np.isfinite(kp) & np.isfinite(ki) & (kp >= 0) & (ki > 0)
+        if ms is not None:
+            ok &= peak <= ms
+        idx = np.flatnonzero(ok)
+        ok[idx] = _stable_mask(p, kp[idx], ki[idx], meth, pade_order)
+        return ok
 
     def verified(kp: float, ki: float) -> bool:
         C = pi_controller_tf(kp, ki, dt=p.dt, method=meth if p.dt else "forward")

@@ -300,7 +300,7 @@ def frequency_grid(
     spaced logarithmically over the range; with ``crossover`` [rad/s] a further ``n // 4`` points
     fill ``[crossover / 3, 3 crossover]``, and every lightly damped pole/zero pair (damping
     < 0.3) gets 8 points across its resonance peak, so that a margin or a sensitivity peak is not
-    missed between samples. Duplicates are removed, so the result has at least ``n`` points.
+    missed between samples. The result is strictly increasing (duplicates removed).
     """
     pset = as_plant_set(plants)
     if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 2:
@@ -344,6 +344,8 @@ def frequency_grid(
         a, b = max(lo, wn - half), min(hi, wn + half)
         if a < b:
             parts.append(np.linspace(a, b, 8))
-    grid = np.unique(np.concatenate(parts))
+    grid = np.unique(np.clip(np.concatenate([*parts, [lo, hi]]), lo, hi))
+    keep = np.concatenate([[True], np.diff(grid) > 1e-12 * grid[1:]])  # round-off duplicates
+    grid = grid[keep]
     grid[0], grid[-1] = lo, hi  # exact ends (w_nyq itself for a discrete set)
     return grid

@@ -226,3 +226,61 @@ def test_bad_input_discrete_and_sets():
         design_pi([1 / (s + 1), 1 / (s + 2)])
     with pytest.raises(TypeError, match=r"unexpected keyword argument 'pm'"):
         design_pi(1 / (s + 1), pm=60)  # type: ignore[call-arg]
+
+
+@pytest.mark.parametrize(
+    ("plant", "method"),
+    [
+        (Plant((s + 0.5) / ((s + 1) * (s + 2)), delay=0.3), "continuous"),
+        (Plant((-0.5 * s + 1) / (s + 2)), "continuous"),  # feedthrough D != 0
+        (Plant(control.c2d(1 / ((s + 1) * (s + 4)), 0.1), delay=0.1), "forward"),
+        (Plant(control.c2d(1 / ((s + 1) * (s + 4)), 0.1)), "backward"),
+        (Plant(control.c2d(3 / (s + 1), 0.1)), "tustin"),
+    ],
+)
+def test_stability_screen_agrees_with_python_control(plant, method):
+    """The stacked-eigenvalue screen of the scan against python-control's feedback poles."""
+    from drivetrain_ctrl.design.pi import _stable_mask
+
+    rng = np.random.default_rng(1)
+    kp = 10 ** rng.uniform(-2, 1.7, 60)
+    ki = 10 ** rng.uniform(-2, 1.7, 60)
+    got = _stable_mask(plant, kp, ki, method, 5)
+    G = plant.with_pade(5)
+    m = "forward" if method == "continuous" else method
+    want = []
+    for a, b in zip(kp, ki, strict=True):
+        cl = control.feedback(pi_controller_tf(a, b, dt=plant.dt, method=m) * G, 1)
+        poles = control.poles(cl)
+        want.append(bool(np.all(np.abs(poles) < 1) if plant.dt else np.all(poles.real < 0)))
+    assert got.tolist() == want
+    assert 0 < sum(want) < 60  # both outcomes occur
+
+
+def test_ms_rule_discrete_with_delay_against_brute_force():
+    """ZOH 1/((s+1)(s+4)) at 0.1 s with a sample of delay, Ms <= 1.5: the largest stable ki of
+    a (kp, ki) grid (stability by python-control) against the design."""
+    Ts = 0.1
+    Pd = control.c2d(1 / ((s + 1) * (s + 4)), Ts)
+    plant = Plant(Pd, delay=Ts)
+    d = design_pi(plant, ms=1.5)
+    assert d.feasible and d.stable and d.ms <= 1.5 * 1.001
+    w = np.linspace(1e-3, math.pi / Ts, 1000)
+    z = np.exp(1j * w * Ts)
+    Pw = np.array([complex(Pd(x)) for x in z]) / z
+    F = Ts / (z - 1)
+    kps = np.linspace(0, 10, 101)
+    kis = np.linspace(0, 10, 501)
+    cands = []
+    for kp in kps:
+        L = (kp + kis[:, None] * F[None, :]) * Pw[None, :]
+        ok = np.max(1 / np.abs(1 + L), axis=1) <= 1.5
+        cands += [(ki, kp) for ki in kis[ok]]
+    Gd = Pd * control.tf([1], [1, 0], Ts)
+    best = None
+    for ki, kp in sorted(cands, reverse=True):
+        cl = control.feedback(pi_controller_tf(kp, ki, dt=Ts) * Gd, 1)
+        if np.all(np.abs(control.poles(cl)) < 1):
+            best = ki
+            break
+    assert best is not None and d.ki == pytest.approx(best, rel=0.01)

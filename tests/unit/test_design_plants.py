@@ -157,6 +157,9 @@ def test_grid_discrete_ends_at_nyquist():
     Pd = control.c2d(1 / ((s + 1) * (s + 5)), dt)
     w = frequency_grid(Pd, n=50)
     assert w[-1] == pytest.approx(math.pi / dt, rel=1e-12)
+    for n in (50, 3000):  # strictly increasing up to the Nyquist frequency itself
+        wn = frequency_grid(Plant(Pd, delay=dt), n=n, crossover=3.0)
+        assert np.all(np.diff(wn) > 0) and wn[-1] == math.pi / dt
     assert w[0] == pytest.approx(1.0 / 100, rel=1e-6)  # the z-plane pole exp(-dt) maps to 1 rad/s
     # a set mixing 10-ms and 20-ms plants ends at the smaller Nyquist frequency
     w2 = frequency_grid([Pd, control.c2d(1 / (s + 1), 0.02)], n=50)
