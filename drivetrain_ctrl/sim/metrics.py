@@ -45,7 +45,8 @@ from numpy.typing import NDArray
 from ..core.serialize import json_ready
 from ..core.units import m_s_to_kmh, rad_s_to_rpm
 from ..core.validate import is_finite_real
-from ..plant.model import Mode, Model
+from ..plant.model import Model
+from .series import state_derivatives
 from .simulator import SimulationResult
 
 __all__ = [
@@ -276,10 +277,6 @@ def metrics_markdown(keys: Iterable[str] | None = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _mode(res: SimulationResult, i: int) -> Mode:
-    return Mode(tuple(int(v) for v in res.fm[i]), tuple(int(v) for v in res.reg[i]))
-
-
 def state_accelerations(res: SimulationResult) -> tuple[F64, F64]:
     """Time derivatives of all states at every sample, from the model's right-hand side.
 
@@ -287,21 +284,23 @@ def state_accelerations(res: SimulationResult) -> tuple[F64, F64]:
     speed, m/s^2 for a translational one): ``right[i] = rhs(x_i, u_i, mode_i)`` (the derivative
     just after ``t_i``) and ``left[i] = rhs(x_i, u_i, mode_{i-1})`` (just before ``t_i``, the mode
     the integrator held on ``[t_{i-1}, t_i]``; ``left[0] = right[0]``). They differ only at
-    samples where the mode changed (events).
+    samples where the mode changed (events). Evaluated on the whole run at once
+    (:func:`~drivetrain_ctrl.sim.series.state_derivatives`), equal to
+    :meth:`Model.rhs <drivetrain_ctrl.plant.model.Model.rhs>` row by row to round-off.
     """
-    model = res.model
-    n = res.t.shape[0]
-    right = np.empty((n, model.nx))
-    left = np.empty((n, model.nx))
-    prev: Mode | None = None
-    for i in range(n):
-        mode = _mode(res, i)
-        right[i] = model.rhs(res.x[i], res.u[i], mode)
-        if prev is None or prev == mode:
-            left[i] = right[i]
-        else:
-            left[i] = model.rhs(res.x[i], res.u[i], prev)
-        prev = mode
+    D = res.model.data
+    X = np.asarray(res.x, dtype=float)
+    U = np.asarray(res.u, dtype=float)
+    FM = np.asarray(res.fm, dtype=np.int64)
+    REG = np.asarray(res.reg, dtype=np.int64)
+    right = state_derivatives(D, X, U, FM, REG)
+    left = right.copy()
+    changed = np.zeros(X.shape[0], dtype=bool)
+    if X.shape[0] > 1:
+        changed[1:] = np.any(FM[1:] != FM[:-1], axis=1) | np.any(REG[1:] != REG[:-1], axis=1)
+    idx = np.flatnonzero(changed)
+    if idx.size:
+        left[idx] = state_derivatives(D, X[idx], U[idx], FM[idx - 1], REG[idx - 1])
     return right, left
 
 

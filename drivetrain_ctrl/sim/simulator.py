@@ -32,6 +32,7 @@ from ..control.blocks import require_controller
 from ..core.signals import Signal, constant, pack_signals
 from ..core.validate import is_finite_real
 from ..plant.model import Model
+from . import series
 from .compile_notice import announce_compile
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -233,12 +234,7 @@ class SimulationResult:
 
     def coupling_torques(self) -> F64:
         """(N, m) torque of every coupling [N m] in its upstream frame (incl. stuck torques)."""
-        D = self._data()
-        out = np.empty((self.t.shape[0], D.ratio.shape[0]))
-        for i in range(self.t.shape[0]):
-            _, Lam = K.mode_matrices(D, self.fm[i])
-            out[i] = K.coupling_torques(D, self.x[i], self.u[i], self.fm[i], self.reg[i], Lam)
-        return out
+        return series.coupling_torques(self._data(), self.x, self.u, self.fm, self.reg)
 
     def source_torques(self) -> dict[str, F64]:
         """Torque [N m] of every lagged source (the engine's C_G) at every sample."""
@@ -257,7 +253,7 @@ class SimulationResult:
 
     def stored_energy(self) -> F64:
         """(N,) stored energy [J] evaluated from the state."""
-        return np.array([K.stored_energy(self.model.data, xi) for xi in self.x])
+        return series.stored_energy(self.model.data, self.x)
 
     @property
     def energy_residual_rel(self) -> float:
