@@ -178,6 +178,79 @@ class PIDesign:
         """The rational loop ``C P`` (delay as in :meth:`Plant.with_pade`)."""
         return self.controller * self.plant.with_pade(pade_order)
 
+    def to_spec(
+        self,
+        name: str,
+        *,
+        x_r0: float | None = None,
+        delay_samples: int | None = None,
+        **options: Any,
+    ) -> Any:
+        """This PI as a clutch controller (a :class:`~drivetrain_ctrl.control.laws.ControllerSpec`,
+        saved with ``save_controller``): ``law = "pi"`` for a continuous or forward-Euler PI
+        (the shipped PI's integrator), else ``law = "lti"`` with the transfer function. The
+        gains act on law (6)'s signed error, as on the plants of
+        :func:`~drivetrain_ctrl.design.clutch.clutch_plant_set` (``kp`` [m s/rad], ``ki``
+        [m/rad]). ``delay_samples``: the controller's transport delay [samples]; None takes the
+        plant's delay in samples (a sampled clutch plant carries the controller's delay).
+        ``x_r0`` [m] and ``options`` (``engage_rate_m_s``, ``rate_limit_m_s``, ``anti_windup``,
+        ...) are the spec's fields. The design spec and achieved figures go into its ``design``
+        table."""
+        from drivetrain_ctrl.control.laws import ControllerSpec, spec_from_lti
+
+        if delay_samples is None:
+            k = self.plant.delay / self.dt if self.dt else 0.0
+            if self.dt and abs(k - round(k)) > 1e-9 * max(1.0, k):
+                raise ValueError(
+                    f"delay_samples: the plant's delay {self.plant.delay!r} s is not a whole "
+                    f"number of samples of {self.dt!r} s; give delay_samples"
+                )
+            if not self.dt and self.plant.delay:
+                raise ValueError(
+                    f"delay_samples: the continuous plant has a delay of {self.plant.delay!r} s, "
+                    "which a continuous controller file cannot carry; give delay_samples=0 if "
+                    "the delay is the plant's own"
+                )
+            delay_samples = round(k)
+        prov: dict[str, Any] = {
+            "method": "design_pi",
+            "rule": self.rule,
+            "plant": self.plant.name,
+            "feasible": self.feasible,
+        }
+        for key, v in (
+            ("wc_target_rad_s", self.wc_target),
+            ("phase_margin_target_deg", self.pm_target),
+            ("ms_target", self.ms_target),
+            ("crossover_rad_s", self.crossover),
+            ("phase_margin_deg", self.phase_margin),
+            ("gain_margin_db", self.gain_margin_db),
+            ("ms", self.ms),
+            ("mt", self.mt),
+        ):
+            if v is not None:
+                prov[key] = float(v)
+        if self.method in ("continuous", "forward"):
+            return ControllerSpec(
+                name=name,
+                law="pi",
+                kp=self.kp,
+                ki=self.ki,
+                x_r0=x_r0,
+                sample_period_s=self.dt or None,
+                delay_samples=int(delay_samples),
+                design=prov,
+                **options,
+            )
+        return spec_from_lti(
+            self.controller,
+            name=name,
+            x_r0=x_r0,
+            delay_samples=int(delay_samples),
+            design=prov,
+            **options,
+        )
+
     def summary(self) -> str:
         """One sentence: gains, achieved margins, and the message if the spec was not met."""
 

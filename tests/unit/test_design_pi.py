@@ -284,3 +284,27 @@ def test_ms_rule_discrete_with_delay_against_brute_force():
             best = ki
             break
     assert best is not None and d.ki == pytest.approx(best, rel=0.01)
+
+
+def test_to_spec_is_the_designed_controller(tmp_path):
+    """A forward-Euler design becomes law "pi" with the plant's delay in samples; a Tustin one
+    law "lti"; both files' LTI blocks have the design's frequency response."""
+    from drivetrain_ctrl.control.laws import load_controller, save_controller
+
+    Ts = 0.05
+    a = math.exp(-Ts)
+    # clutch-like scale: the gains come out in the controller files' range (< 1 m s/rad)
+    plant = Plant(control.tf([1e4 * (1 - a)], [1, -a], Ts), delay=2 * Ts)
+    z = np.exp(1j * np.array([0.5, 5.0, 30.0]) * Ts)
+    for method, law in (("forward", "pi"), ("tustin", "lti")):
+        d = design_pi(plant, wc=3.0, phase_margin=60.0, method=method)
+        spec = d.to_spec(f"my-{method}")
+        assert spec.law == law and spec.delay_samples == 2 and spec.sample_period_s == Ts
+        assert spec.design["rule"] == "given crossover"
+        assert spec.design["phase_margin_deg"] == pytest.approx(60.0, abs=1e-3)
+        back = load_controller(save_controller(spec, tmp_path / f"{method}.toml"))
+        assert np.allclose(control.tf(back.lti())(z), d.controller(z), rtol=1e-9)
+    d = design_pi(Plant(1e4 / (s + 1), delay=0.1), wc=1.0, phase_margin=60.0)
+    with pytest.raises(ValueError, match=r"continuous plant has a delay of 0.1 s"):
+        d.to_spec("x")
+    assert d.to_spec("x", delay_samples=0).law == "pi"
