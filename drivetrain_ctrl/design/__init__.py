@@ -8,6 +8,17 @@ start loop is its first client.
 
 from __future__ import annotations
 
+from drivetrain_ctrl.design.certificates import (
+    ClutchSectorCertificate,
+    LyapunovCertificate,
+    SectorCertificate,
+    clutch_sector_certificate,
+    common_lyapunov,
+    largest_sector,
+    sampled_loop,
+    sector_certificate,
+    zoh_with_delay,
+)
 from drivetrain_ctrl.design.clutch import ClutchPlantSet, clutch_plant_set
 from drivetrain_ctrl.design.pi import PIDesign, design_pi, pi_controller_tf, pi_gains_at
 from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
@@ -37,4 +48,13 @@ __all__ = [
     "UnboundedSpecError",
     "robust_pi",
     "robust_pid",
+    "LyapunovCertificate",
+    "SectorCertificate",
+    "ClutchSectorCertificate",
+    "common_lyapunov",
+    "sector_certificate",
+    "largest_sector",
+    "clutch_sector_certificate",
+    "zoh_with_delay",
+    "sampled_loop",
 ]
