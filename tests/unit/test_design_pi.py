@@ -4,6 +4,7 @@ re-checked with python-control, the infeasible path, exact delays and discrete p
 from __future__ import annotations
 
 import math
+import pickle
 
 import control
 import numpy as np
@@ -42,6 +43,7 @@ def test_first_order_closed_form():
         wc, rel=1e-4
     )
     assert isinstance(d, PIDesign) and "kp = " in d.summary()
+    assert pickle.loads(pickle.dumps(d)).kp == d.kp
 
 
 def test_second_order_closed_form():
