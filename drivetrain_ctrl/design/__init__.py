@@ -20,6 +20,14 @@ from drivetrain_ctrl.design.certificates import (
     zoh_with_delay,
 )
 from drivetrain_ctrl.design.clutch import ClutchPlantSet, clutch_plant_set
+from drivetrain_ctrl.design.hinf import (
+    HinfDesign,
+    HinfSpec,
+    HinfSynthesisError,
+    HinfTimeoutError,
+    hinf_mixsyn,
+    mixsyn_weights,
+)
 from drivetrain_ctrl.design.pi import PIDesign, design_pi, pi_controller_tf, pi_gains_at
 from drivetrain_ctrl.design.plants import Plant, PlantSet, as_plant_set, frequency_grid
 from drivetrain_ctrl.design.robust import (
@@ -48,6 +56,12 @@ __all__ = [
     "UnboundedSpecError",
     "robust_pi",
     "robust_pid",
+    "HinfSpec",
+    "HinfDesign",
+    "HinfTimeoutError",
+    "HinfSynthesisError",
+    "hinf_mixsyn",
+    "mixsyn_weights",
     "LyapunovCertificate",
     "SectorCertificate",
     "ClutchSectorCertificate",
