@@ -1148,10 +1148,24 @@ def _clutch_message(
 ) -> str:
     if mu_c is None:
         return "Not certified even for a constant friction coefficient (mu' = 0)."
-    s = f"Slip loop certified stable for every friction characteristic with slope mu' in [{mu_c:.6g}, 0] s/rad"
-    if sat is not None:
-        s += f" and the actuator saturation in the sector [{sat[0]:g}, {sat[1]:g}]"
-    s += f" ({how})."
+    sat_txt = (
+        f" and the actuator saturation in the sector [{sat[0]:g}, {sat[1]:g}]"
+        if sat is not None
+        else ""
+    )
+    if how == "continuous":
+        s = (
+            "Slip loop certified stable for every friction characteristic with slope mu' in "
+            f"[{mu_c:.6g}, 0] s/rad{sat_txt} (any nonlinear, time-varying characteristic in that "
+            "sector; a quadratic Lyapunov function and the S-procedure)."
+        )
+    else:
+        s = (
+            f"Sampled slip loop ({how}) certified stable for the friction slopes spread evenly over "
+            f"[{mu_c:.6g}, 0] s/rad{sat_txt} and any switching among them (one common Lyapunov "
+            "function of the lifted loop, exact at the samples; slopes between the grid points are "
+            "not covered by the proof)."
+        )
     if mu_l is not None:
         s += f" Linear limit of the same loop: {mu_l:.6g} s/rad."
     if jc is not None:
@@ -1227,10 +1241,7 @@ def _sampled_clutch(
                 hi = mid
     mu_c = lo if lo < 0 else None
     ratio = (mu_c / jn) if (mu_c is not None and jn) else None
-    how = (
-        f"sampled, dt = {dt:g} s: lifted loop, common Lyapunov function over {mu_grid} slopes spread over "
-        "the interval and any switching among them"
-    )
+    how = f"dt = {dt:g} s, {mu_grid} slopes, lifted loop"
     return ClutchSectorCertificate(
         mu_c,
         jn,

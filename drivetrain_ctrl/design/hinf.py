@@ -22,9 +22,11 @@ The traps of the synthesis are guarded, and each guard is said in the result's `
   the synthesis assumptions; they are moved into the left half plane by ``axis_shift`` [rad/s]
   (default ``1e-3 w_ref``; a Schur split, the other poles untouched) for the synthesis only, and
   every check uses the true plant. Weights must be stable (an error names the weight and pole).
-* **Run time.** The slycot gamma iteration runs in a separate process under ``time_limit`` [s]
-  (a ``multiprocessing`` process that is terminated, never a hang); past it
-  :class:`HinfTimeoutError` says what to change.
+* **Run time.** The gamma iteration (slycot ``sb10ad``, bisection then scanning, the routine
+  python-control's ``hinfsyn`` calls) runs in a separate process under ``time_limit`` [s] (a
+  ``multiprocessing`` process that is terminated, never a hang); past it
+  :class:`HinfTimeoutError` says what to change. It starts at the first of 1, 10, 100, ... that
+  admits a controller rather than at ``hinfsyn``'s 1e100 (the same optimum, fewer iterations).
 * **Optimum.** At the optimal gamma the central controller is ill-conditioned (its closed-loop
   norm can exceed gamma by several per cent); as MATLAB's ``hinfsyn`` does, the returned
   controller is the suboptimal one at ``gamma = (1 + gamma_backoff) gamma_opt`` (slycot

@@ -81,6 +81,16 @@ def test_gamma_equals_the_closed_loop_norm_computed_here(which, request):
     assert np.all(cl.poles().real < 0)
 
 
+@pytest.mark.filterwarnings("ignore::FutureWarning")  # augw uses the deprecated connect
+def test_optimum_equals_python_control_hinfsyn(first_order):
+    """The gamma iteration started near the optimum finds python-control's hinfsyn optimum."""
+    d = first_order
+    w = d.weights
+    P = control.augw(d.synthesis_plant, w.W1, w.W2, w.W3)
+    _K, _CL, gam, _rc = control.hinfsyn(P, 1, 1)
+    assert d.gamma_optimal == pytest.approx(gam, rel=1e-5)
+
+
 def test_known_optimum_constant_weights():
     """G = 1/(s+1), W1 = W2 = 1/2: |W1 S| -> 1/2 as w -> inf for any proper K (S -> 1), and K = 0
     achieves 1/2, so the optimal gamma is exactly 1/2."""
