@@ -8,6 +8,7 @@ Subcommands::
     drivetrain-ctrl params show [NAME|FILE.toml] [--provenance]
     drivetrain-ctrl params list
     drivetrain-ctrl scenarios list
+    drivetrain-ctrl study run STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS]
 
 ``simulate`` writes into DIR: ``trajectory.csv`` and ``events.csv`` (column names carry units),
 ``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.sim.metrics.engagement_metrics`;
@@ -17,6 +18,9 @@ compiled kernels, whose time is ``kernel_load_s``; ``total_wall_time_s`` includi
 steps, function evaluations), ``overview.png`` and ``energy.png``. ``demo`` runs both built-in scenarios on the
 full and the reduced model (``--quick``: reduced only) into ``DIR/<scenario>-<model>/`` and
 writes ``DIR/summary.md``.
+
+``study run`` runs a robustness study file (:mod:`drivetrain_ctrl.studies.study`) on Dask into
+``DIR/results/*.parquet`` and resumes an interrupted run (:mod:`drivetrain_ctrl.studies.runner`).
 
 Exit codes: 0 success; 1 the simulation failed (e.g. Zeno) or an output could not be written;
 2 invalid command line or input (unknown scenario or parameter set, invalid or misspelt key in a
@@ -535,6 +539,32 @@ def _cmd_scenarios_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study_run(args: argparse.Namespace) -> int:
+    from .studies.runner import run_study
+    from .studies.study import StudyError, load_study
+
+    try:
+        study = load_study(args.study)
+    except StudyError as exc:
+        raise InputError(_msg(exc)) from None
+    print(study.summary())
+    try:
+        done = run_study(
+            study,
+            out=args.out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            chunk_size=args.chunk_size,
+            progress=not args.no_progress,
+        )
+    except StudyError as exc:
+        raise InputError(_msg(exc)) from None
+    except OSError as exc:
+        raise RunError(f"cannot write the results: {_msg(exc)}") from None
+    print(done.summary())
+    return 0
+
+
 # ------------------------------------------------------------------------------------------------
 # parser
 # ------------------------------------------------------------------------------------------------
@@ -553,6 +583,17 @@ def _out_dir(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"{text!r}: give an output directory")
     return text
+
+
+def _positive_int(text: str) -> int:
+    """An option's value: an integer >= 1, else an argparse error naming the text."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} must be an integer >= 1") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} must be an integer >= 1")
+    return v
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -623,6 +664,27 @@ def build_parser() -> argparse.ArgumentParser:
     ssub = sc.add_subparsers(dest="scenarios_command", metavar="ACTION", required=True)
     sl = ssub.add_parser("list", help="list the built-in scenarios")
     sl.set_defaults(func=_cmd_scenarios_list)
+
+    st = sub.add_parser("study", help="robustness studies: run a study file on Dask")
+    stsub = st.add_subparsers(dest="study_command", metavar="ACTION", required=True)
+    sr = stsub.add_parser(
+        "run",
+        help="run (or resume) a study into DIR/results/*.parquet",
+        description="Run every sample x controller x scenario of a study file on a local Dask "
+        "cluster (one worker process per core) or an existing scheduler; re-running resumes "
+        "and computes only the missing rows (format: drivetrain_ctrl.studies.study).",
+    )
+    sr.add_argument("study", help="the study .toml file")
+    sr.add_argument("--out", required=True, type=_out_dir, help="output directory")
+    sr.add_argument(
+        "--workers", type=_positive_int, default=None, help="worker processes (default: cores)"
+    )
+    sr.add_argument(
+        "--scheduler", default=None, help="address of a running Dask scheduler (tcp://host:8786)"
+    )
+    sr.add_argument("--chunk-size", type=_positive_int, default=None, help="runs per Dask task")
+    sr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sr.set_defaults(func=_cmd_study_run)
     return ap
 
 

@@ -1,0 +1,410 @@
+"""Running a study on Dask: chunks of cases on worker processes, one Parquet file per chunk, resume.
+
+:func:`run_study` runs every row of a :class:`~drivetrain_ctrl.studies.study.Study` (sample x
+controller x scenario) through :func:`~drivetrain_ctrl.studies.case.run_case`, the one function
+from a case to a record; Dask (``dask.distributed``) only decides where. By default a local
+cluster of worker processes (one per core, one thread each) is started and closed again; give a
+``client`` or a ``scheduler`` address to use an existing cluster. Every worker loads the compiled
+kernels once, when it joins (a worker plugin running :func:`~drivetrain_ctrl.sim.warmup.warmup`).
+
+Nothing lost, nothing twice. The rows are cut into chunks; the driver writes each finished
+chunk as its own Parquet file under ``OUT/results/`` atomically (a temporary file, flushed, then
+:func:`os.replace`), named after the keys it holds. A re-run of the same study into the same
+folder reads the keys present and runs only the missing ones, so an interrupted run (Ctrl-C,
+a killed command) resumes where it stopped, and a chunk whose worker died is retried by Dask
+and written once. A run that fails (Zeno, non-finite state, step size, invalid parameter
+values) is a row with ``status = "failed"`` and its ``error``; the study goes on.
+:func:`read_results` gives the table, sorted by key: the same for a resumed run as for an
+uninterrupted one.
+
+The table: one row per ``key`` = ``s<sample>|<controller>|<scenario>`` with ``sample``,
+``controller``, ``scenario``, the parameters ``param:<name>`` (SI units), ``status``
+(``ok``, ``failed`` or why the run stopped early), ``error``, the study's metrics (numbers as
+float64, a flag as 0/1, None as NaN; ``model``, ``status``, ``notes`` as text), one
+``pass:<criterion>`` column per criterion and ``pass`` (status ``ok`` and every criterion met).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from distributed import WorkerPlugin
+
+from .case import Case, CaseError, run_case
+from .study import TEXT_METRICS, Criterion, Study, StudyError, load_study, sample_table
+
+__all__ = ["KernelWarmup", "StudyRun", "read_results", "run_chunk", "run_study"]
+
+RESULTS = "results"
+#: the columns every table has before the parameters
+ID_COLUMNS: tuple[str, ...] = ("key", "sample", "controller", "scenario")
+
+Runner = Callable[[Case], Mapping[str, Any]]
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """What :func:`run_study` did: the folder ``out``, ``rows`` in its table now (of
+    ``expected``), ``computed`` by this call, ``skipped`` (present before), ``failed`` rows of
+    the table, ``passed`` rows, ``chunks`` written, ``workers`` used and ``wall_s`` [s]."""
+
+    out: Path
+    expected: int
+    rows: int
+    computed: int
+    skipped: int
+    failed: int
+    passed: int
+    chunks: int
+    workers: int
+    wall_s: float
+
+    def table(self) -> pd.DataFrame:
+        """The results table (:func:`read_results`)."""
+        return read_results(self.out)
+
+    def summary(self) -> str:
+        """One sentence: what was run and what the table holds."""
+        return (
+            f"{self.computed} run(s) computed in {self.wall_s:.1f} s on {self.workers} worker(s) "
+            f"({self.skipped} already present); {self.rows} of {self.expected} rows in "
+            f"{self.out / RESULTS}, {self.failed} failed, {self.passed} passed every criterion"
+        )
+
+
+# -- on the workers ---------------------------------------------------------------------------
+class KernelWarmup(WorkerPlugin):  # type: ignore[misc]
+    """Dask worker plugin: load (or compile) the simulator kernels once when a worker starts,
+    so no chunk pays for it."""
+
+    name = "drivetrain-ctrl-kernels"
+
+    def setup(self, worker: Any) -> None:  # noqa: ARG002 - the plugin interface
+        """Run the tiny warm-up simulations (:func:`~drivetrain_ctrl.sim.warmup.warmup`)."""
+        from ..sim.warmup import warmup
+
+        warmup()
+
+
+def _as_number(v: Any) -> float:
+    if v is None:
+        return math.nan
+    if isinstance(v, bool):
+        return 1.0 if v else 0.0
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _as_text(v: Any) -> str | None:
+    if v is None:
+        return None
+    if isinstance(v, list | tuple):
+        return "; ".join(str(x) for x in v)
+    return str(v)
+
+
+def _row(
+    item: tuple[str, int, str, str, Mapping[str, float]],
+    record: Mapping[str, Any],
+    metrics: Sequence[str],
+    criteria: Sequence[Criterion],
+) -> dict[str, Any]:
+    key, sample, controller, scenario, values = item
+    status = str(record.get("status") or "failed")
+    row: dict[str, Any] = {
+        "key": key,
+        "sample": sample,
+        "controller": controller,
+        "scenario": scenario,
+        **{f"param:{k}": float(v) for k, v in values.items()},
+        "status": status,
+        "error": _as_text(record.get("error")),
+    }
+    for m in metrics:
+        if m == "status":
+            continue
+        v = record.get(m)
+        row[m] = _as_text(v) if m in TEXT_METRICS else _as_number(v)
+    ok = status == "ok"
+    for c in criteria:
+        passed = ok and bool(c.check([_as_number(record.get(c.metric))])[0])
+        row[f"pass:{c.text}"] = passed
+        ok = ok and passed
+    row["pass"] = ok if criteria else status == "ok"
+    return row
+
+
+def run_chunk(
+    items: Sequence[tuple[str, int, str, str, Mapping[str, float]]],
+    cases: Sequence[Case],
+    metrics: Sequence[str],
+    criteria: Sequence[Criterion],
+    run: Runner = run_case,
+) -> list[dict[str, Any]]:
+    """The rows of one chunk (runs on a worker): ``run`` (:func:`run_case`) on every case; an
+    exception of one run (invalid parameter values, a simulator error) becomes a failed row with
+    the reason, so one bad sample never stops a chunk."""
+    rows = []
+    for item, case in zip(items, cases, strict=True):
+        try:
+            record: Mapping[str, Any] = run(case)
+        except CaseError as exc:
+            record = {"status": "failed", "error": f"invalid input: {exc}"}
+        except Exception as exc:  # noqa: BLE001 - recorded with its reason, the study goes on
+            record = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+        rows.append(_row(item, record, metrics, criteria))
+    return rows
+
+
+# -- the table on disk ------------------------------------------------------------------------
+def _schema(study: Study) -> Any:
+    import pyarrow as pa
+
+    fields = [
+        pa.field("key", pa.string()),
+        pa.field("sample", pa.int64()),
+        pa.field("controller", pa.string()),
+        pa.field("scenario", pa.string()),
+        *(pa.field(f"param:{p.name}", pa.float64()) for p in study.parameters),
+        pa.field("status", pa.string()),
+        pa.field("error", pa.string()),
+        *(
+            pa.field(m, pa.string() if m in TEXT_METRICS else pa.float64())
+            for m in study.metrics
+            if m != "status"
+        ),
+        *(pa.field(f"pass:{c.text}", pa.bool_()) for c in study.criteria),
+        pa.field("pass", pa.bool_()),
+    ]
+    return pa.schema(fields)
+
+
+def _atomic_write(path: Path, write: Callable[[Path], object]) -> None:
+    """``write`` to a temporary file beside ``path``, flush it to disk, rename it to ``path``."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        write(tmp)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+def _chunk_name(keys: Sequence[str]) -> str:
+    h = hashlib.sha1("\n".join(keys).encode()).hexdigest()[:16]
+    return f"chunk-{h}.parquet"
+
+
+def _write_chunk(folder: Path, rows: list[dict[str, Any]], schema: Any) -> Path:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    cols = {f.name: [r.get(f.name) for r in rows] for f in schema}
+    table = pa.Table.from_pydict(cols, schema=schema)
+    path = folder / _chunk_name([r["key"] for r in rows])
+    _atomic_write(path, lambda p: pq.write_table(table, p))
+    return path
+
+
+def _chunk_files(out: Path) -> list[Path]:
+    return sorted((out / RESULTS).glob("chunk-*.parquet"))
+
+
+def _present_keys(out: Path) -> set[str]:
+    import pyarrow.parquet as pq
+
+    keys: set[str] = set()
+    for f in _chunk_files(out):
+        keys.update(pq.read_table(f, columns=["key"]).column("key").to_pylist())
+    return keys
+
+
+def read_results(out: str | Path) -> pd.DataFrame:
+    """The results table of study folder ``out``: every chunk file, sorted by ``key``, index
+    0..n-1 (see the module docstring for the columns)."""
+    import pyarrow.parquet as pq
+
+    files = _chunk_files(Path(out))
+    if not files:
+        raise FileNotFoundError(f"{Path(out) / RESULTS}: no results (run the study first)")
+    df = pd.concat([pq.read_table(f).to_pandas() for f in files], ignore_index=True)
+    return df.sort_values("key", kind="stable").reset_index(drop=True)
+
+
+def _prepare_folder(study: Study, out: Path) -> pd.DataFrame:
+    """Create ``out`` (``study.json``, ``samples.parquet``) or check that it holds this study;
+    remove temporary files a killed run left behind; the sample table."""
+    (out / RESULTS).mkdir(parents=True, exist_ok=True)
+    meta = out / "study.json"
+    digest = study.digest
+    if meta.exists():
+        try:
+            old = json.loads(meta.read_text()).get("digest")
+        except (OSError, ValueError):
+            old = None
+        if old != digest:
+            raise StudyError(
+                f"out = {str(out)!r}: the folder holds results of another study (or another "
+                "version of it); give a new folder"
+            )
+    else:
+        text = json.dumps({"digest": digest, "study": study.to_dict()}, indent=2, default=str)
+        _atomic_write(meta, lambda p: p.write_text(text + "\n"))
+    for tmp in (out / RESULTS).glob(".chunk-*.tmp-*"):
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+    samples = sample_table(study)
+    sp = out / "samples.parquet"
+    if not sp.exists():
+        _atomic_write(sp, lambda p: samples.to_parquet(p))
+    return samples
+
+
+def _items(study: Study, samples: pd.DataFrame, missing: set[str]) -> Iterator[Any]:
+    names = list(samples.columns)
+    values = samples.to_numpy()
+    for i in range(study.samples):
+        vals = {n: float(v) for n, v in zip(names, values[i], strict=True)}
+        for c in study.controller_names:
+            for j, s in enumerate(study.scenario_names):
+                case = study.case(i, vals, c, j)
+                if case.label in missing:
+                    yield (case.label, i, c, s, vals), case
+
+
+def _progress(total: int, enabled: bool) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="run", disable=not enabled, dynamic_ncols=True, smoothing=0.1)
+
+
+def run_study(
+    study: Study | str | Path,
+    *,
+    out: str | Path,
+    client: Any = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    chunk_size: int | None = None,
+    progress: bool = True,
+    run: Runner = run_case,
+) -> StudyRun:
+    """Run ``study`` (a :class:`Study` or a study file) into folder ``out``; resumes what is there.
+
+    ``client``: a :class:`dask.distributed.Client` to run on (left open); else ``scheduler``: the
+    address of a running Dask scheduler to connect to; else a local cluster of ``workers`` worker
+    processes (default: the number of cores), one thread each, closed at the end.
+    ``chunk_size``: runs per task (default: up to 32, at least 4 tasks per worker).
+    ``progress``: a progress bar on stderr (runs done, failed, remaining, ETA). ``run``: the
+    function from a case to a record (default :func:`run_case`; a picklable replacement serves
+    tests). Returns a :class:`StudyRun`; the table is :func:`read_results` of ``out``.
+    """
+    tic = time.perf_counter()
+    if not isinstance(study, Study):
+        study = load_study(study)
+    if isinstance(out, bool) or not isinstance(out, str | Path) or not str(out).strip():
+        raise StudyError(f"out = {out!r}: give an output folder")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise StudyError(f"workers = {workers!r}: must be an integer >= 1")
+    if chunk_size is not None and (
+        isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1
+    ):
+        raise StudyError(f"chunk_size = {chunk_size!r}: must be an integer >= 1")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise StudyError(f"scheduler = {scheduler!r}: must be an address like tcp://host:8786")
+    if client is not None and (scheduler is not None or workers is not None):
+        raise StudyError("client: give a client, or a scheduler address / workers, not both")
+    if not callable(run):
+        raise StudyError(f"run = {run!r}: must be a function from a Case to a record")
+    out = Path(out)
+    samples = _prepare_folder(study, out)
+    all_keys = study.keys()
+    missing = set(all_keys) - _present_keys(out)
+    todo = list(_items(study, samples, missing))
+    schema = _schema(study)
+    n_chunks = 0
+    n_workers = 0
+    if todo:
+        from dask.distributed import Client, LocalCluster, as_completed
+
+        from ..sim.warmup import ensure_compiled
+
+        ensure_compiled()  # compile once here (a notice), not on every local worker at once
+        cluster = None
+        own_client = client is None
+        if client is None:
+            if scheduler is not None:
+                client = Client(scheduler)
+            else:
+                cluster = LocalCluster(
+                    n_workers=workers or os.cpu_count() or 1,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                )
+                client = Client(cluster)
+        try:
+            client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
+            n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+            size = chunk_size or max(1, min(32, math.ceil(len(todo) / (4 * n_workers))))
+            chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
+            futures = [
+                client.submit(
+                    run_chunk,
+                    [it for it, _ in ch],
+                    [c for _, c in ch],
+                    study.metrics,
+                    study.criteria,
+                    run,
+                    key=_chunk_name([it[0] for it, _ in ch]).removesuffix(".parquet"),
+                    pure=False,
+                )
+                for ch in chunks
+            ]
+            failed = 0
+            with _progress(len(todo), progress) as bar:
+                for fut in as_completed(futures):
+                    rows = fut.result()
+                    _write_chunk(out / RESULTS, rows, schema)
+                    n_chunks += 1
+                    failed += sum(r["status"] == "failed" for r in rows)
+                    bar.update(len(rows))
+                    bar.set_postfix(failed=failed, remaining=bar.total - bar.n, refresh=False)
+                    fut.release()
+        finally:
+            if own_client:
+                client.close()
+            if cluster is not None:
+                cluster.close()
+    table = read_results(out) if _chunk_files(out) else pd.DataFrame(columns=list(ID_COLUMNS))
+    n_failed = int(np.sum(table["status"] == "failed")) if len(table) else 0
+    n_pass = int(np.sum(table["pass"])) if len(table) else 0
+    return StudyRun(
+        out=out,
+        expected=len(all_keys),
+        rows=len(table),
+        computed=len(todo),
+        skipped=len(all_keys) - len(missing),
+        failed=n_failed,
+        passed=n_pass,
+        chunks=n_chunks,
+        workers=n_workers,
+        wall_s=time.perf_counter() - tic,
+    )
