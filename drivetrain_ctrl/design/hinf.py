@@ -24,8 +24,10 @@ The traps of the synthesis are guarded, and each guard is said in the result's `
   every check uses the true plant. Weights must be stable (an error names the weight and pole).
 * **Run time.** The gamma iteration (slycot ``sb10ad``, bisection then scanning, the routine
   python-control's ``hinfsyn`` calls) runs in a separate process under ``time_limit`` [s] (a
-  ``multiprocessing`` process that is terminated, never a hang); past it
-  :class:`HinfTimeoutError` says what to change. It starts at the first of 1, 10, 100, ... that
+  ``multiprocessing`` process that is terminated, never a hang; where ``fork`` is missing or
+  the caller is a daemonic pool or Dask worker, a fresh interpreter running
+  :mod:`~drivetrain_ctrl.design._hinf_worker`, killed); past it :class:`HinfTimeoutError` says
+  what to change. It starts at the first of 1, 10, 100, ... that
   admits a controller rather than at ``hinfsyn``'s 1e100 (the same optimum, fewer iterations).
 * **Optimum.** At the optimal gamma the central controller is ill-conditioned (its closed-loop
   norm can exceed gamma by several per cent); as MATLAB's ``hinfsyn`` does, the returned
@@ -69,10 +71,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import multiprocessing as mp
+import pickle
+import subprocess
+import sys
 import time
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import control
@@ -82,6 +88,7 @@ from numpy.typing import NDArray
 
 from ..core.serialize import json_ready
 from ..core.validate import did_you_mean, real_number
+from . import _hinf_worker
 from .plants import Plant, PlantSet, as_plant_set, frequency_grid
 
 __all__ = [
@@ -493,65 +500,35 @@ _SLYCOT_INFO = {
 }
 
 
-def _synthesis_worker(conn: Any, A: F64, B: F64, C: F64, D: F64, backoff: float) -> None:
-    """In the child process: slycot ``sb10ad``'s gamma iteration (``job=3``, bisection then
-    scanning, as python-control's ``hinfsyn``) started at the first of 1, 10, 100, ... that
-    admits a controller (``job=4``; ``hinfsyn`` starts at 1e100, which costs many more
-    iterations), then the central controller at ``(1 + backoff) gamma_opt`` (``job=4``); sends
-    the result, or the error, through ``conn``."""
+def _synthesis_worker(conn: Any, *args: Any) -> None:
+    """In a forked child: :func:`~drivetrain_ctrl.design._hinf_worker.run`, the result sent
+    through ``conn``."""
     try:
-        import slycot
-
-        n, m, p = A.shape[0], B.shape[1], C.shape[0]
-        g0 = 1e100
-        for g in 10.0 ** np.arange(0, 13):
-            try:
-                slycot.sb10ad(n, m, p, 1, 1, float(g), A, B, C, D, job=4)
-            except Exception:  # not admissible at this gamma (or a numerical failure): go up
-                continue
-            g0 = float(g)
-            break
-        gam_opt = float(slycot.sb10ad(n, m, p, 1, 1, g0, A, B, C, D, job=3)[0])
-        f = 1.0 + backoff
-        last: Exception | None = None
-        for _ in range(6):
-            try:
-                out = slycot.sb10ad(n, m, p, 1, 1, gam_opt * f, A, B, C, D, job=4)
-                conn.send(("ok", gam_opt, gam_opt * f, out[1:5], out[9]))
-                return
-            except Exception as exc:  # numerical trouble close to the optimum: back off more
-                last = exc
-                f = 1.0 + 2.0 * (f - 1.0)
-        raise last if last is not None else RuntimeError("sb10ad failed")
-    except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
-        conn.send(("error", type(exc).__name__, str(exc), getattr(exc, "info", None)))
+        conn.send(_hinf_worker.run(args))
     finally:
         conn.close()
 
 
-def _context() -> Any:
-    methods = mp.get_all_start_methods()
-    return mp.get_context("fork" if "fork" in methods else "spawn")
+def _can_fork() -> bool:
+    """Whether the synthesis can run in a forked ``multiprocessing`` child: ``fork`` exists and
+    this process is not daemonic (a daemonic process may not have children)."""
+    return "fork" in mp.get_all_start_methods() and not mp.current_process().daemon
 
 
-def _synthesise(P: control.StateSpace, time_limit: float, backoff: float) -> tuple[Any, ...]:
-    """Run :func:`_synthesis_worker` under ``time_limit`` [s]; returns ``(gamma_opt, gamma, K,
-    rcond, seconds)``."""
-    ctx = _context()
+def _run_forked(args: tuple[Any, ...], time_limit: float) -> tuple[bool, Any, str]:
+    """(finished, message, how it ended) of the worker in a forked child, terminated past
+    ``time_limit``."""
+    ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    args = tuple(np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (P.A, P.B, P.C, P.D))
-    proc = ctx.Process(target=_synthesis_worker, args=(send, *args, backoff), daemon=True)
-    t0 = time.perf_counter()
+    proc = ctx.Process(target=_synthesis_worker, args=(send, *args), daemon=True)
     proc.start()
     send.close()
     try:
         ready = recv.poll(time_limit)
         msg = recv.recv() if ready else None
     except EOFError:
-        msg = None
-        ready = True
+        msg, ready = None, True
     finally:
-        elapsed = time.perf_counter() - t0
         if proc.is_alive() and not ready:
             proc.terminate()
         proc.join(5.0)
@@ -559,6 +536,35 @@ def _synthesise(P: control.StateSpace, time_limit: float, backoff: float) -> tup
             proc.kill()
             proc.join()
         recv.close()
+    return ready, msg, f"exit code {proc.exitcode}"
+
+
+def _run_script(args: tuple[Any, ...], time_limit: float) -> tuple[bool, Any, str]:
+    """The same in a fresh interpreter running the worker module as a script (numpy and slycot
+    only), killed past ``time_limit`` (its start-up counts)."""
+    cmd = [sys.executable, "-I", str(Path(_hinf_worker.__file__).resolve())]
+    try:
+        done = subprocess.run(
+            cmd, input=pickle.dumps(args), capture_output=True, timeout=time_limit, check=False
+        )
+    except subprocess.TimeoutExpired:
+        return False, None, "killed"
+    if done.returncode != 0 or not done.stdout:
+        err = done.stderr.decode(errors="replace").strip().splitlines()[-1:] or [""]
+        return True, None, f"exit code {done.returncode} {err[0]}"
+    return True, pickle.loads(done.stdout), "exit code 0"
+
+
+def _synthesise(P: control.StateSpace, time_limit: float, backoff: float) -> tuple[Any, ...]:
+    """The gamma iteration (:mod:`~drivetrain_ctrl.design._hinf_worker`) in a child process under
+    ``time_limit`` [s]: forked where possible, else a fresh interpreter; returns ``(gamma_opt,
+    gamma, K, rcond, seconds)``."""
+    mats = [np.ascontiguousarray(np.asarray(M, dtype=float)) for M in (P.A, P.B, P.C, P.D)]
+    args: tuple[Any, ...] = (*mats, float(backoff))
+    t0 = time.perf_counter()
+    run = _run_forked if _can_fork() else _run_script
+    ready, msg, how = run(args, time_limit)
+    elapsed = time.perf_counter() - t0
     if not ready:
         raise HinfTimeoutError(
             f"H-infinity synthesis did not finish within time_limit = {time_limit:g} s (slycot's "
@@ -568,9 +574,7 @@ def _synthesise(P: control.StateSpace, time_limit: float, backoff: float) -> tup
             "bandwidth, larger ms/mt/effort)"
         )
     if msg is None:
-        raise HinfSynthesisError(
-            f"H-infinity synthesis process ended without a result (exit code {proc.exitcode})"
-        )
+        raise HinfSynthesisError(f"H-infinity synthesis process ended without a result ({how})")
     if msg[0] == "error":
         _, name, text, info = msg
         why = _SLYCOT_INFO.get(info, "") if isinstance(info, int) else ""

@@ -158,6 +158,18 @@ def test_time_limit_ends_with_a_clear_error():
     assert time.perf_counter() - t0 < 10.0
 
 
+def test_without_fork_the_synthesis_runs_as_a_script(monkeypatch, first_order):
+    """In a daemonic process (a pool or Dask worker) or without fork: a fresh interpreter runs
+    the worker module; same optimum, and the time limit still holds."""
+    import drivetrain_ctrl.design.hinf as hinf
+
+    monkeypatch.setattr(hinf, "_can_fork", lambda: False)
+    d = hinf_mixsyn(control.tf([1.0], [1.0, 1.0]), bandwidth=5.0)
+    assert d.gamma_optimal == pytest.approx(first_order.gamma_optimal, rel=1e-9)
+    with pytest.raises(HinfTimeoutError, match="time_limit = 0.001 s"):
+        hinf_mixsyn(control.tf([1.0], [1.0, 1.0]), bandwidth=5.0, time_limit=1e-3)
+
+
 def test_reduction_reports_margins_before_and_after(delayed):
     d = delayed
     assert d.order_full == 5 and d.order_reduced == 4
