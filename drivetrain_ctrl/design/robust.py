@@ -142,8 +142,8 @@ class RobustSpec:
     integrator: str = "forward"
     omega: tuple[float, ...] | None = None
     n_omega: int = 200
-    subsamples: int = 16
-    check_points: int = 4000
+    subsamples: int = 8
+    check_points: int = 2000
     start: tuple[float, ...] | None = None
     solver: str = "CLARABEL"
     max_iter: int = 100
@@ -877,13 +877,12 @@ def _find_start(
     kps = np.concatenate([[0.0], sp * np.logspace(-3, 1, 13)])
     KP, KI = np.meshgrid(kps, kis, indexing="ij")
     cands = np.stack([KP.ravel(), KI.ravel()], axis=1)
-    ok = np.zeros(len(cands), dtype=bool)
-    worst = np.full(len(cands), -np.inf)
+    worst = np.empty(len(cands))
     for j, c in enumerate(cands):
         th = np.zeros(n_i)
         th[:2] = c
         worst[j] = _min_slack(_cell_slack(g, disks, th))
-        ok[j] = worst[j] >= 0.0
+    ok = worst >= 0.0
     # per kp, only the run of feasible ki that starts at the smallest ki (the component that
     # reaches the stable small-gain limit; a huge gain also clears every disk, encircling -1)
     okg = ok.reshape(KP.shape)
