@@ -338,3 +338,23 @@ def test_backlash_impacts_and_crossings(runs: dict[str, Run], key: str) -> None:
     assert impacts >= 2 and crossings >= 1
     assert r.m["n_backlash_impacts"] == impacts
     assert r.m["n_backlash_crossings"] == crossings
+
+
+def test_filtered_jerk_on_short_signals() -> None:
+    """The resampled signal is filtered (forwards and backwards, the pad at most n - 1 samples)
+    when it has more than 7 samples, and only differentiated when shorter; written out with
+    scipy here on 8 and 7 samples of a ramp plus a step."""
+    from drivetrain_ctrl.sim.metrics import filtered_jerk
+
+    sos = signal.butter(2, 10.0, fs=1000.0, output="sos")
+    for n in (8, 7):
+        t = np.array([0.0, 0.0035, (n - 0.5) / 1000.0])
+        acc_in = np.array([0.0, 1.0, 3.0])
+        g, af, jk = filtered_jerk(t, acc_in)
+        grid = np.arange(n) / 1000.0
+        assert np.allclose(g, grid, rtol=0, atol=1e-15)
+        raw = np.interp(grid, t, acc_in)
+        want = signal.sosfiltfilt(sos, raw, padlen=n - 1) if n > 7 else raw
+        np.testing.assert_allclose(af, want, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(jk, np.gradient(want, 1e-3), rtol=1e-12, atol=1e-9)
+        assert (n > 7) is not np.allclose(af, raw)
