@@ -61,11 +61,11 @@ def runs() -> dict[str, Run]:
 # -- plain re-computations ------------------------------------------------------------------------
 
 
-def lockup(res: SimulationResult, start: float) -> float | None:
+def lockup(res: SimulationResult, start: float, element: str = "clutch") -> float | None:
     """The first slip -> stuck transition of the clutch at or after ``start`` whose stuck phase
     lasts >= 0.2 s, from the recorded mode series (the event samples are recorded twice)."""
     t = res.t
-    stuck = np.array([m == "stuck" for m in res.mode_series("clutch")])
+    stuck = np.array([m == "stuck" for m in res.mode_series(element)])
     for i in range(1, t.shape[0]):
         if stuck[i] and not stuck[i - 1] and t[i] >= start:
             later = np.flatnonzero(~stuck[i:])
@@ -358,3 +358,33 @@ def test_filtered_jerk_on_short_signals() -> None:
         np.testing.assert_allclose(af, want, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(jk, np.gradient(want, 1e-3), rtol=1e-12, atol=1e-9)
         assert (n > 7) is not np.allclose(af, raw)
+
+
+def test_filtered_jerk_on_two_samples_and_near_the_nyquist_frequency() -> None:
+    from drivetrain_ctrl.sim.metrics import filtered_jerk
+
+    # two samples in, two grid points out: no filter (fewer than 8), the slope by differences
+    g, af, jk = filtered_jerk(np.array([0.0, 0.0015]), np.array([0.0, 3.0]))
+    assert g.tolist() == [0.0, 0.001]
+    np.testing.assert_allclose(jk, [2000.0, 2000.0], rtol=1e-12)
+    # a cut-off just below half the sampling rate is accepted and filters
+    t = np.linspace(0.0, 0.1, 11)
+    g, af, _ = filtered_jerk(t, np.sin(40.0 * t), cutoff_hz=400.0, fs_hz=1000.0)
+    sos = signal.butter(2, 400.0, fs=1000.0, output="sos")
+    np.testing.assert_allclose(af, signal.sosfiltfilt(sos, np.interp(g, t, np.sin(40.0 * t))))
+
+
+def test_the_clutch_name_selects_a_coupling_friction(runs: dict[str, Run]) -> None:
+    """``clutch`` names a coupling friction; a ground friction (the engine's) has no lock-up or
+    clutch energy, another coupling (the damper's friction) its own stuck phases."""
+    r = runs["engage-ramp/full"]
+    m = engagement_metrics(r.res, clutch="engine", start=r.start)
+    assert m["lockup_time_s"] is None and m["clutch_energy_J"] is None
+    assert m["n_lock_events"] is None
+    d = engagement_metrics(r.res, clutch="damper_friction", start=r.start)
+    t_d = lockup(r.res, r.start, "damper_friction")
+    assert t_d != lockup(r.res, r.start)
+    if t_d is None:
+        assert d["lockup_time_s"] is None
+    else:
+        assert d["lockup_time_s"] == pytest.approx(t_d, rel=1e-8)
