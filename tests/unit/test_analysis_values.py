@@ -83,6 +83,12 @@ def test_bandwidth_on_a_user_grid_interpolates_between_grid_points() -> None:
     m = A.loop_margins(_textbook(k), omega=w)
     assert m.bandwidth_rad_s == pytest.approx(expected, rel=1e-12)
     assert w[j - 1] < m.bandwidth_rad_s < w[j]
+    # two grid points bracketing the crossing: the interpolation between them
+    w2 = np.array([0.01, 10.0])
+    t2 = np.abs(k / ((1j * w2) ** 3 + 2 * (1j * w2) ** 2 + 1j * w2 + k))
+    f2 = (t2[0] - t2[0] / math.sqrt(2)) / (t2[0] - t2[1])
+    m2 = A.loop_margins(_textbook(k), omega=w2)
+    assert m2.bandwidth_rad_s == pytest.approx(10 ** (-2 + f2 * 3), rel=1e-12)
     # a grid ending before |T| falls: no bandwidth, with the reason
     m3 = A.loop_margins(_textbook(k), omega=np.logspace(-3, -2, 5))
     assert m3.bandwidth_rad_s is None and "3 dB" in dict(m3.reasons)["bandwidth_rad_s"]
