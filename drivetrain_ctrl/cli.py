@@ -9,6 +9,8 @@ Subcommands::
     drivetrain-ctrl params list
     drivetrain-ctrl scenarios list
     drivetrain-ctrl study run STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS]
+    drivetrain-ctrl design pi|robust-pi|pid|hinf --spec NAME|SPEC.toml --out CONTROLLER.toml
+                           [--name NAME] [--no-check]
 
 ``simulate`` writes into DIR: ``trajectory.csv`` and ``events.csv`` (column names carry units),
 ``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.sim.metrics.engagement_metrics`;
@@ -17,7 +19,12 @@ simulation's own wall time [s], measured after a 1-ms run of the same model has 
 compiled kernels, whose time is ``kernel_load_s``; ``total_wall_time_s`` including the outputs;
 steps, function evaluations), ``overview.png`` and ``energy.png``. ``demo`` runs both built-in scenarios on the
 full and the reduced model (``--quick``: reduced only) into ``DIR/<scenario>-<model>/`` and
-writes ``DIR/summary.md``.
+writes ``DIR/summary.md``. ``design`` designs a clutch controller from a design spec
+(:mod:`drivetrain_ctrl.design.from_spec`): it prints the achieved figures per plant and the
+limiting plants, writes the controller file, then runs it on the switching plant (the spec's
+``[check]``: ``paper-start`` on both models by default) and prints its engagement metrics beside
+the linear figures; an engine stall, no lock-up or a Zeno stop is said loudly (exit code 1, the
+file is written all the same).
 
 ``study run`` runs a robustness study file (:mod:`drivetrain_ctrl.studies.study`) on Dask into
 ``DIR/results/*.parquet`` and resumes an interrupted run (:mod:`drivetrain_ctrl.studies.runner`).
@@ -40,7 +47,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from .control.laws import builtin_controllers
+from .control.laws import ControllerError, builtin_controllers
 from .core.serialize import json_ready
 from .core.tables import PwlTable
 from .core.validate import real_number
@@ -466,6 +473,144 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _design_table(run: Any) -> list[str]:
+    """The per-plant table of a design: achieved figures, stability, limiting (``*``)."""
+    head = (
+        f"{'#':>3} {'Ms':>6} {'Mt':>6} {'GM dB':>7} {'PM deg':>7} {'DM dB':>6} "
+        f"{'wc rad/s':>9} {'stable':>6}  plant (* limits the design)"
+    )
+    lines = [head]
+    for i, r in enumerate(run.plants):
+        lines.append(
+            f"{i:>3} {r.ms:>6.3f} {r.mt:>6.3f} {_fmt(r.gain_margin_db, '.1f'):>7} "
+            f"{_fmt(r.phase_margin_deg, '.1f'):>7} {r.disk_margin_db:>6.1f} "
+            f"{_fmt(r.crossover_rad_s, '.3g'):>9} {_fmt(r.stable):>6}  "
+            f"{'*' if r.limiting else ' '}{r.plant}"
+        )
+    return lines
+
+
+#: the linear figures printed beside the switching plant's metrics: (label, key of
+#: ``DesignRun.worst()``, format)
+DESIGN_FIGURES: tuple[tuple[str, str, str], ...] = (
+    ("plants", "n_plants", "d"),
+    ("max Ms", "ms_max", ".3f"),
+    ("max Mt", "mt_max", ".3f"),
+    ("min gain margin [dB]", "gain_margin_db_min", ".1f"),
+    ("min phase margin [deg]", "phase_margin_deg_min", ".1f"),
+    ("min disk margin [dB]", "disk_margin_db_min", ".1f"),
+    ("crossover min [rad/s]", "crossover_rad_s_min", ".3g"),
+    ("crossover max [rad/s]", "crossover_rad_s_max", ".3g"),
+    ("all loops stable", "all_stable", ""),
+)
+
+
+def _side_by_side(run: Any, check: Any) -> list[str]:
+    """The linear figures (worst over the plant set) beside the switching plant's engagement
+    metrics per model."""
+    from .design.from_spec import CHECK_METRICS
+
+    w = run.worst()
+    left = [f"linear ({run.method}, worst over the plant set)", ""]
+    for label, key, spec in DESIGN_FIGURES:
+        v = w[key]
+        left.append(f"{label:<24}{_fmt(v, spec) if spec and v is not None else _fmt(v):>10}")
+    right = [f"switching plant ({check.scenario}, {check.params})"]
+    right.append(f"{'':<24}" + "".join(f"{r.model:>11}" for r in check.runs))
+    for key in CHECK_METRICS:
+        cells = [
+            _fmt_metric(key, r.metrics.get(key)) if r.metrics is not None else "FAILED"
+            for r in check.runs
+        ]
+        right.append(f"{key:<24}" + "".join(f"{c:>11}" for c in cells))
+    n = max(len(left), len(right))
+    left += [""] * (n - len(left))
+    right += [""] * (n - len(right))
+    width = max(len(x) for x in left) + 4
+    return [f"{a:<{width}}{b}".rstrip() for a, b in zip(left, right, strict=True)]
+
+
+def _cmd_design(args: argparse.Namespace) -> int:
+    from .design.from_spec import DesignSpecError, design_from_spec, load_design_spec
+    from .design.hinf import HinfSynthesisError, HinfTimeoutError
+
+    out = Path(args.out)
+    if out.suffix != ".toml":
+        raise InputError(f"--out {out}: a controller file must end in .toml")
+    if out.is_dir():
+        raise InputError(f"--out {out} is an existing directory, not a controller file")
+    try:
+        spec = load_design_spec(args.spec)
+    except FileNotFoundError as exc:
+        raise InputError(f"design spec not found: {exc.filename or args.spec}") from None
+    except (ValueError, OSError) as exc:
+        raise InputError(f"design spec: {_msg(exc)}") from None
+    ensure_compiled()  # the trajectory of the operating points is a simulation
+    try:
+        run = design_from_spec(args.method, spec, name=args.name or spec.name or out.stem)
+    except (DesignSpecError, ControllerError) as exc:
+        raise InputError(f"design spec {spec.source}: {_msg(exc)}") from None
+    except HinfTimeoutError as exc:
+        raise RunError(f"design {args.method}: {exc}") from None
+    except ValueError as exc:  # an infeasible or unbounded specification, a bad option
+        raise InputError(f"design {args.method} ({spec.source}): {_msg(exc)}") from None
+    except (HinfSynthesisError, ZenoError, RuntimeError) as exc:
+        raise RunError(f"design {args.method}: {exc}") from None
+    print(f"design {args.method} from {spec.source}: {run.plant_set.summary()}")
+    print("\n".join(_design_table(run)))
+    print(textwrap.fill(run.result.summary(), width=100))
+    if not run.met:
+        print(f"WARNING: the specification is NOT met: {run.message}")
+    ctrl = run.controller
+    replaced = out.is_file()
+    try:
+        ctrl.to_toml(
+            out,
+            header=(
+                f"Designed by `{PROG} design {args.method} --spec {spec.source}` (design spec "
+                f"and achieved figures: the [design] table)."
+            ),
+        )
+    except OSError as exc:
+        raise RunError(f"cannot write {out}: {exc}") from None
+    gains = (
+        f"kp = {ctrl.kp:.4g} m s/rad, ki = {ctrl.ki:.4g} m/rad"
+        if ctrl.law == "pi"
+        else f"order {ctrl.lti().nstates}"
+    )
+    sampled = (
+        f", sampled every {ctrl.sample_period_s:g} s with {ctrl.delay_samples} sample(s) delay"
+        if ctrl.sample_period_s
+        else ", continuous"
+    )
+    print(
+        f"controller {ctrl.name!r} (law {ctrl.law!r}, {gains}{sampled}) written to {out}"
+        + (" (replaced)" if replaced else "")
+    )
+    if args.no_check:
+        return 0 if run.met else 1
+    try:
+        check = run.check()
+    except (ValueError, OSError) as exc:
+        raise InputError(f"design spec {spec.source}: check: {_msg(exc)}") from None
+    print()
+    print("\n".join(_side_by_side(run, check)))
+    for r in check.runs:
+        for w in dict.fromkeys(r.warnings):
+            print(f"note ({r.model} model): {w}")
+        for p in r.problems:
+            msg = f"design {ctrl.name!r} on the switching plant, {r.model} model: {p}"
+            print(f"!!! {msg}")
+            print(f"{PROG}: WARNING: {msg}", file=sys.stderr)
+    if not check.ok:
+        print(
+            f"!!! the controller file {out} was written, but the design FAILS on the switching "
+            "plant: do not ship it as it is",
+        )
+        return 1
+    return 0 if run.met else 1
+
+
 def _value_text(v: Any) -> str:
     if v is None:
         return "-"
@@ -659,6 +804,26 @@ def build_parser() -> argparse.ArgumentParser:
     ps.set_defaults(func=_cmd_params_show)
     pl = psub.add_parser("list", help="list the built-in parameter sets")
     pl.set_defaults(func=_cmd_params_list)
+
+    gp = sub.add_parser(
+        "design",
+        help="design a clutch controller from a design spec; write the controller file",
+        description="Design a clutch controller from a design spec (TOML: the plant set, the "
+        "bounds, the sampling; format: drivetrain_ctrl.design.from_spec), print the achieved "
+        "figures per plant, write the controller file and run it on the switching plant.",
+    )
+    gp.add_argument("method", choices=("pi", "robust-pi", "pid", "hinf"), help="design method")
+    gp.add_argument(
+        "--spec",
+        required=True,
+        help="a design spec .toml file or a built-in one (robust-pi, hinf)",
+    )
+    gp.add_argument("--out", required=True, help="the controller file to write (.toml)")
+    gp.add_argument(
+        "--name", default=None, help="controller name (default: the spec's, else the file stem)"
+    )
+    gp.add_argument("--no-check", action="store_true", help="skip the run on the switching plant")
+    gp.set_defaults(func=_cmd_design)
 
     sc = sub.add_parser("scenarios", help="list the built-in scenarios")
     ssub = sc.add_subparsers(dest="scenarios_command", metavar="ACTION", required=True)

@@ -16,6 +16,10 @@ Built-in controllers (:func:`builtin_controllers`), TOML files shipped in ``cont
 ``paper-10ms``, ``pi-10ms``
     The same, sampled every 10 ms with a transport delay of one sample (a transmission control
     unit).
+``robust-pi``, ``hinf``
+    Designed controllers (``law = "pi"``, ``law = "lti"``), written by ``drivetrain-ctrl design``
+    from the design specs of the same name (:mod:`drivetrain_ctrl.design.from_spec`); their
+    ``[design]`` table holds the spec and the achieved figures.
 
 Measured speeds: the controller measures omega_1 (engine) and omega_3 (primary shaft) as in the
 paper. In the reduced model omega_3 is the primary-shaft speed, and the clutch slip is omega_1 -
@@ -664,7 +668,10 @@ def _toml_dumps(d: dict[str, Any], prefix: str = "") -> str:
     text = "".join(ln + "\n" for ln in lines)
     for k, v in tables:
         name = f"{prefix}{_toml_key(k)}"
-        text += f"\n[{name}]\n" + _toml_dumps(v, prefix=f"{name}.")
+        # a table holding only tables needs no header of its own (its sub-tables define it)
+        only_tables = bool(v) and all(isinstance(x, dict) for x in v.values())
+        head = "" if only_tables else f"\n[{name}]\n"
+        text += head + _toml_dumps(v, prefix=f"{name}.")
     return text
 
 
@@ -712,7 +719,7 @@ def slip_loop(spec: ControllerSpec, params: DrivetrainParams) -> control.Transfe
 
 #: the order the built-in controllers are listed (and the demo runs them) in; a file in
 #: ``control/builtin/`` not named here follows, alphabetically
-BUILTIN_ORDER: tuple[str, ...] = ("paper", "pi", "paper-10ms", "pi-10ms")
+BUILTIN_ORDER: tuple[str, ...] = ("paper", "pi", "paper-10ms", "pi-10ms", "robust-pi", "hinf")
 
 #: the package whose ``builtin/`` folder holds the built-in controller files
 _PACKAGE = __name__.rpartition(".")[0]

@@ -31,6 +31,7 @@ DATA = {
     "plant/parameter_sets": "drivetrain_ctrl.plant",
     "control/builtin": "drivetrain_ctrl.control",
     "scenarios/builtin": "drivetrain_ctrl.scenarios",
+    "design/specs": "drivetrain_ctrl.design",
 }
 
 
