@@ -93,7 +93,7 @@ SAG_SAFETY = 1.5
 ACTIVE_TOL = 2e-3
 #: relative tolerance of the feasibility check of an iterate (solver accuracy)
 FEAS_TOL = 1e-7
-#: |L| range [GM_FLOOR, 1/GM_FLOOR] in which crossovers are searched (gain margins within 60 dB)
+#: ``|L|`` range [GM_FLOOR, 1/GM_FLOOR] in which crossovers are searched (gain margins within 60 dB)
 GM_FLOOR = 1e-3
 #: at most this many points of the check grid go into python-control's margin search (its cost
 #: grows with the points; it interpolates between them)
@@ -442,7 +442,7 @@ class RobustTuning:
         return None if any(f is None for f in flags) else True
 
     def table(self) -> list[dict[str, Any]]:
-        """One row per plant: name, Ms, Mt, |KS|, GM [dB], PM [deg], disk margin [dB, deg],
+        """One row per plant: name, Ms, Mt, ``|KS|``, GM [dB], PM [deg], disk margin [dB, deg],
         crossover [rad/s], stable, limiting (for a printed table or a DataFrame)."""
         return [
             {
