@@ -265,6 +265,15 @@ def test_vehicle_acceleration_figures(
     assert r.m["final_vehicle_speed_kmh"] > 5.0
 
 
+def _jerk(t: np.ndarray, a: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
+    """The filtered jerk on the 1-kHz grid from t[0] and the mask of [t0, t1] on it."""
+    fs = 1000.0
+    g = t[0] + np.arange(int(round((t[-1] - t[0]) * fs))) / fs
+    sos = signal.butter(2, 10.0, fs=fs, output="sos")
+    af = signal.sosfiltfilt(sos, np.interp(g, t, a))
+    return np.gradient(af, 1.0 / fs), (g >= t0) & (g <= t1)
+
+
 @pytest.mark.parametrize("key", ["engage-ramp/reduced", "engage-ramp/full"])
 def test_jerk_is_the_derivative_of_the_10_hz_filtered_acceleration(
     runs: dict[str, Run], acc: dict[str, tuple[np.ndarray, np.ndarray]], key: str
@@ -277,12 +286,7 @@ def test_jerk_is_the_derivative_of_the_10_hz_filtered_acceleration(
     iv = r.res.model.state_names.index("v_vehicle")
     a = acc[key][0][:, iv]
     _, t_w, _ = windows(r)
-    fs = 1000.0
-    g = t[0] + np.arange(int(round((t[-1] - t[0]) * fs))) / fs
-    sos = signal.butter(2, 10.0, fs=fs, output="sos")
-    af = signal.sosfiltfilt(sos, np.interp(g, t, a))
-    jk = np.gradient(af, 1.0 / fs)
-    win = (g >= r.start) & (g <= t_w)
+    jk, win = _jerk(t, a, r.start, t_w)
     jmax = float(np.max(np.abs(jk[win])))
     jrms = math.sqrt(float(np.mean(jk[win] ** 2)))
     assert jmax > 10.0 and 0.0 < jrms < jmax
@@ -388,3 +392,44 @@ def test_the_clutch_name_selects_a_coupling_friction(runs: dict[str, Run]) -> No
         assert d["lockup_time_s"] is None
     else:
         assert d["lockup_time_s"] == pytest.approx(t_d, rel=1e-8)
+
+
+def test_two_sample_records(runs: dict[str, Run]) -> None:
+    """The accelerations and the jerk need no more than two samples: the one-sided limits of a
+    record of the samples just before and at lock-up, and the figures of a run sampled at its
+    two ends only."""
+    from drivetrain_ctrl.sim.metrics import state_accelerations
+
+    r = runs["engage-ramp/reduced"]
+    res = r.res
+    t_lock, _, _ = windows(r)
+    i = int(np.flatnonzero((res.t == t_lock) & (res.fm[:, 0] == 0))[0])
+    two = dataclasses.replace(
+        res, t=res.t[i - 1 : i + 1], x=res.x[i - 1 : i + 1], u=res.u[i - 1 : i + 1],
+        fm=res.fm[i - 1 : i + 1], reg=res.reg[i - 1 : i + 1],
+    )  # fmt: skip
+    right, left = state_accelerations(two)
+    before = Mode(tuple(int(v) for v in res.fm[i - 1]), tuple(int(v) for v in res.reg[i - 1]))
+    np.testing.assert_allclose(left[1], res.model.rhs(res.x[i], res.u[i], before), rtol=1e-9)
+    assert not np.allclose(left[1], right[1])
+    ends = res.sample([0.0, 2.0])
+    assert ends.t.shape[0] == 2
+    m = engagement_metrics(ends, start=0.0)
+    iv = res.model.state_names.index("v_vehicle")
+    a = np.array([res.model.rhs(ends.x[k], ends.u[k], Mode(
+        tuple(int(v) for v in ends.fm[k]), tuple(int(v) for v in ends.reg[k])))[iv]
+        for k in range(2)])  # fmt: skip
+    jk, win = _jerk(ends.t, a, 0.0, 2.0)
+    assert m["jerk_max_m_s3"] == pytest.approx(float(np.max(np.abs(jk[win]))), rel=1e-6)
+
+
+def test_the_run_keys_name_the_drivetrain(runs: dict[str, Run]) -> None:
+    for key, r in runs.items():
+        assert r.m["model"] == r.kind and r.m["gear"] == 1, key
+        assert r.m["start_s"] == r.start and r.m["status"] == "ok"
+    from drivetrain_ctrl.sim.metrics import filtered_jerk
+
+    t = np.linspace(0.0, 2.0, 201)
+    g, af, _ = filtered_jerk(t, np.sin(3.0 * t), cutoff_hz=0.5)  # a cut-off below 1 Hz
+    sos = signal.butter(2, 0.5, fs=1000.0, output="sos")
+    np.testing.assert_allclose(af, signal.sosfiltfilt(sos, np.interp(g, t, np.sin(3.0 * t))))
