@@ -43,6 +43,7 @@ import os
 import random
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -346,6 +347,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the sample")
     ap.add_argument("--tests", nargs="+", help="test files (default: unit tests importing it)")
     ap.add_argument("--timeout", type=float, default=0.0, help="per mutant [s] (0: automatic)")
+    ap.add_argument(
+        "--max-minutes",
+        type=float,
+        default=0.0,
+        help="start no new mutant after this many minutes (0: no limit); the score is then that "
+        "of the mutants run",
+    )
     ap.add_argument("--list", action="store_true", help="list the mutation points and stop")
     ap.add_argument("--json", type=Path, help="write the outcomes to this JSON file")
     ap.add_argument("--keep", action="store_true", help="keep the sandbox directory")
@@ -354,6 +362,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--sample = {args.sample}: must be >= 0")
     if args.timeout < 0:
         ap.error(f"--timeout = {args.timeout}: must be >= 0")
+    if args.max_minutes < 0:
+        ap.error(f"--max-minutes = {args.max_minutes}: must be >= 0")
 
     path = _resolve(args.module)
     rel = path.relative_to(ROOT).as_posix()
@@ -390,15 +400,24 @@ def main(argv: list[str] | None = None) -> int:
         timeout = args.timeout or 3.0 * base + 30.0
         print(f"[mutate] unmutated run: pass in {base:.1f} s; timeout {timeout:.0f} s per mutant")
         outcomes: list[Outcome] = []
-        for i, p in enumerate(chosen, 1):
-            target.write_text(mutate_source(source, p), encoding="utf-8")
-            st, sec = _run_tests(sandbox, tests, timeout)
-            src = lines[p.line - 1].strip()
-            eq = st == "survived" and (rel, src, p.change) in equivalents
-            outcomes.append(Outcome(p, st, sec, src, eq))
-            tag = "equivalent" if eq else st
-            print(f"[{i:3d}/{len(chosen)}] {tag:10s} {sec:6.1f} s  {rel}:{p.line}: {p.change}")
-            sys.stdout.flush()
+        t_start = time.monotonic()
+        # SIGTERM (e.g. a kill by pid) stops like Ctrl-C: the mutants run so far are reported
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
+        try:
+            for i, p in enumerate(chosen, 1):
+                if args.max_minutes and time.monotonic() - t_start > 60.0 * args.max_minutes:
+                    print(f"[mutate] --max-minutes {args.max_minutes:g} reached: stopping")
+                    break
+                target.write_text(mutate_source(source, p), encoding="utf-8")
+                st, sec = _run_tests(sandbox, tests, timeout)
+                src = lines[p.line - 1].strip()
+                eq = st == "survived" and (rel, src, p.change) in equivalents
+                outcomes.append(Outcome(p, st, sec, src, eq))
+                tag = "equivalent" if eq else st
+                print(f"[{i:3d}/{len(chosen)}] {tag:10s} {sec:6.1f} s  {rel}:{p.line}: {p.change}")
+                sys.stdout.flush()
+        except KeyboardInterrupt:
+            print(f"[mutate] interrupted: reporting the {len(outcomes)} mutants run")
         target.write_text(source, encoding="utf-8")
     finally:
         if args.keep:
@@ -413,8 +432,10 @@ def main(argv: list[str] | None = None) -> int:
     n = len(outcomes) - equiv
     score = (killed + timeouts) / n if n else 1.0
     print()
-    print(f"module {rel}: {len(outcomes)} mutants, killed {killed}, timeout {timeouts}, ")
-    print(f"  survived {len(survived)}, equivalent {equiv}: score {100 * score:.0f} %")
+    print(
+        f"module {rel}: {len(outcomes)} mutants, killed {killed}, timeout {timeouts}, "
+        f"survived {len(survived)}, equivalent {equiv}: score {100 * score:.0f} %"
+    )
     if survived:
         print("survivors:")
         for o in survived:
