@@ -117,9 +117,7 @@ class Signal:
     def pwl(self, t: NDArray[np.float64] | float) -> NDArray[np.float64]:
         """Right-continuous value of the piecewise-linear part at ``t`` [s]."""
         tt = np.atleast_1d(np.asarray(t, dtype=float))
-        out = np.empty_like(tt)
-        for j, tj in enumerate(tt):
-            out[j] = _eval_pwl(np.asarray(self.times), np.asarray(self.values), tj, tj)
+        out = _eval_pwl_many(np.asarray(self.times), np.asarray(self.values), tt)
         return out if np.ndim(t) else out[:1].reshape(())
 
     def __call__(self, t: NDArray[np.float64] | float) -> NDArray[np.float64]:
@@ -291,6 +289,30 @@ def _eval_pwl(ts: NDArray[np.float64], vs: NDArray[np.float64], t: float, t_ref:
     if t1 <= t0:
         return float(vs[k + 1])
     return float(vs[k] + (vs[k + 1] - vs[k]) * (t - t0) / (t1 - t0))
+
+
+def _eval_pwl_many(
+    ts: NDArray[np.float64], vs: NDArray[np.float64], t: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:func:`_eval_pwl` at every element of ``t`` (each on its own piece), in one pass: the
+    same formula, element by element."""
+    n = ts.shape[0]
+    k = np.searchsorted(ts, t, side="right") - 1
+    out = np.empty(t.shape, dtype=float)
+    before = k < 0
+    after = k >= n - 1
+    out[before] = vs[0]
+    out[after] = vs[n - 1]
+    mid = ~(before | after)
+    if np.any(mid):
+        km = k[mid]
+        t0, t1 = ts[km], ts[km + 1]
+        v0, v1 = vs[km], vs[km + 1]
+        jump = t1 <= t0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lin = v0 + (v1 - v0) * (t[mid] - t0) / (t1 - t0)
+        out[mid] = np.where(jump, v1, lin)
+    return out
 
 
 def constant(value: float) -> Signal:

@@ -508,6 +508,14 @@ def load_scenario(
             f"load_scenario: params = {params!r}: give a DrivetrainParams, a parameter set name "
             "or file, or None"
         )
+    files = builtin_files(_PACKAGE, order=BUILTIN_ORDER)
+    if isinstance(source, str) and source in files:  # one built-in: read only its file
+        sc = load_toml_as(
+            files[source], functools.partial(scenario_from_dict, params=params), error=ScenarioError
+        )
+        if sc.name != source:
+            raise ScenarioError(f"{files[source]}: name = {sc.name!r}: must be the file's stem")
+        return sc
     b = builtin_scenarios(params)
     return load_builtin_or_toml(
         source,

@@ -343,7 +343,7 @@ def _backlash_counts(res: SimulationResult, t0: float, t1: float) -> tuple[int, 
     """
     impacts = 0
     crossings = 0
-    for ti in res.model.tables:
+    for k, ti in enumerate(res.model.tables):
         if ti.region_names is None:
             continue
         for ev in res.events:
@@ -354,13 +354,17 @@ def _backlash_counts(res: SimulationResult, t0: float, t1: float) -> tuple[int, 
                 and t0 <= ev.t <= t1
             ):
                 impacts += 1
-        side = 0
-        for tk, name in zip(res.t, res.mode_series(ti.name), strict=True):
-            s = 1 if name.endswith("+") else -1 if name.endswith("-") else 0
-            if s != 0:
-                if side != 0 and s != side and t0 <= tk <= t1:
-                    crossings += 1
-                side = s
+        # the contact side at every sample (+1, -1, 0 in the gap); a crossing is a change of
+        # side between consecutive samples in contact, counted where the new side is reached
+        sides = np.array(
+            [1 if n.endswith("+") else -1 if n.endswith("-") else 0 for n in ti.region_names]
+        )
+        s = sides[res.reg[:, k]]
+        touch = np.flatnonzero(s != 0)
+        if touch.size > 1:
+            change = touch[1:][s[touch[1:]] != s[touch[:-1]]]
+            tc = res.t[change]
+            crossings += int(np.count_nonzero((tc >= t0) & (tc <= t1)))
     return impacts, crossings
 
 

@@ -294,6 +294,7 @@ class Study:
         default_factory=dict, repr=False, compare=False, hash=False
     )
     _scenario_names: tuple[str, ...] = field(default=(), repr=False, compare=False, hash=False)
+    _params: DrivetrainParams | None = field(default=None, repr=False, compare=False, hash=False)
 
     def __post_init__(self) -> None:
         self._check()
@@ -465,6 +466,7 @@ class Study:
                 )
             specs[spec.name] = spec
         object.__setattr__(self, "_specs", specs)
+        object.__setattr__(self, "_params", p)
         for prm in self.parameters:
             where = f"parameters.{prm.name!r}"
             if prm.name.startswith(CONTROLLER_PREFIX):
@@ -534,7 +536,8 @@ class Study:
             spec = dataclasses.replace(spec, **gains)
         return Case(
             scenario=self.scenarios[scenario],
-            params=self.params,
+            # the set loaded once (not re-read from its file for every case)
+            params=self._params if self._params is not None else self.params,
             overrides={k: v for k, v in values.items() if not k.startswith(CONTROLLER_PREFIX)},
             model=self.model,
             controller=spec,

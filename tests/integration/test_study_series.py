@@ -113,3 +113,40 @@ def test_metrics_equal_those_of_the_row_by_row_evaluation(
         else:
             assert fast[k] == v, k
     assert fast["lockup_time_s"] is not None
+
+
+def _loop_crossings(res: SimulationResult, t0: float, t1: float) -> int:
+    """The previous definition: walk the samples' mode names, count changes of contact side."""
+    n = 0
+    for ti in res.model.tables:
+        if ti.region_names is None:
+            continue
+        side = 0
+        for tk, name in zip(res.t, res.mode_series(ti.name), strict=True):
+            s = 1 if name.endswith("+") else -1 if name.endswith("-") else 0
+            if s != 0:
+                if side != 0 and s != side and t0 <= tk <= t1:
+                    n += 1
+                side = s
+    return n
+
+
+@pytest.mark.parametrize("kind", ["full", "reduced"])
+def test_backlash_crossings_equal_the_sample_walk(kind: str) -> None:
+    _, _, res = _run("tip-in", None, kind)
+    t_end = float(res.t[-1])
+    windows = [(0.0, t_end), (0.3 * t_end, 0.6 * t_end), (0.5 * t_end, t_end)]
+    counts = [metrics_mod._backlash_counts(res, a, b)[1] for a, b in windows]
+    assert counts == [_loop_crossings(res, a, b) for a, b in windows]
+    assert counts[0] > 0  # tip-in crosses the gap
+
+
+def test_a_signal_on_an_array_equals_its_value_point_by_point() -> None:
+    from drivetrain_ctrl.core.signals import Signal, _eval_pwl
+
+    sig = Signal((0.0, 0.5, 0.5, 1.0, 2.0, 2.0), (1.0, 1.0, 3.0, 4.0, 2.0, -1.0))
+    t = np.concatenate([[-1.0, 0.0, 0.5, 1.0, 2.0, 3.0], np.linspace(-0.5, 2.5, 301)])
+    ts, vs = np.asarray(sig.times), np.asarray(sig.values)
+    expected = np.array([_eval_pwl(ts, vs, tj, tj) for tj in t])
+    np.testing.assert_array_equal(sig(t), expected)
+    assert float(sig(0.5)) == 3.0 and np.ndim(sig(0.5)) == 0
