@@ -418,3 +418,36 @@ def test_nyquist_plot_returns_the_figure_of_the_curve() -> None:
     title = fig.get_suptitle()
     assert "textbook k = 4" in title and "N = 2" in title and "Z = N + P = 2" in title
     plt.close(fig)
+
+
+def test_root_locus_says_which_controller_a_parameter_needs() -> None:
+    from drivetrain_ctrl.control.laws import pi_controller
+
+    op = _slip()
+    pi = pi_controller(
+        P, reference=sg.constant(170.0), kp=3e-4, ki=1e-3, driven_state="omega_primary"
+    )
+    pi_d = pi_controller(
+        P, reference=sg.constant(170.0), kp=3e-4, ki=1e-3, dt=0.01, driven_state="omega_primary"
+    )
+    for c in (None, pi, pi_d):
+        with pytest.raises(ValueError, match="parameter 'k_r': needs a static continuous"):
+            A.root_locus(op, c, parameter="k_r", values=[1e-4])
+    with pytest.raises(ValueError, match="parameter 'omega_a': needs a controller with an"):
+        A.root_locus(op, None, parameter="omega_a", values=[50.0])
+
+
+def test_the_loop_figure_title_gives_the_margins() -> None:
+    import matplotlib.pyplot as plt
+
+    Lc = _textbook(1.0)
+    m = A.loop_margins(Lc)
+    fig = m.plot(Lc)
+    title = fig.get_suptitle() or fig.axes[0].get_title()
+    want = f"GM {m.gain_margin_db:.3g} dB, PM {m.phase_margin_deg:.3g} deg, DM "
+    assert want in title and f"DM {m.disk_margin_db:.3g} dB" in title
+    plt.close(fig)
+    m0 = A.loop_margins(control.tf([0.5], [1.0, 1.0]))  # no crossovers: dashes
+    fig0 = m0.plot()
+    assert "GM - dB, PM - deg" in (fig0.get_suptitle() or fig0.axes[0].get_title())
+    plt.close(fig0)
