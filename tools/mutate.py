@@ -354,6 +354,11 @@ def main(argv: list[str] | None = None) -> int:
         help="start no new mutant after this many minutes (0: no limit); the score is then that "
         "of the mutants run",
     )
+    ap.add_argument(
+        "--lines",
+        help="only the points on these source lines, e.g. 195,449 (after --sample: the sampled "
+        "points on them; re-run a previous run's survivors with its --sample and --seed)",
+    )
     ap.add_argument("--list", action="store_true", help="list the mutation points and stop")
     ap.add_argument("--json", type=Path, help="write the outcomes to this JSON file")
     ap.add_argument("--keep", action="store_true", help="keep the sandbox directory")
@@ -378,6 +383,14 @@ def main(argv: list[str] | None = None) -> int:
     chosen = points
     if args.sample and args.sample < len(points):
         chosen = sorted(random.Random(args.seed).sample(points, args.sample), key=lambda p: p.node)
+    if args.lines:
+        try:
+            wanted = {int(v) for v in args.lines.split(",") if v.strip()}
+        except ValueError:
+            ap.error(f"--lines = {args.lines!r}: comma-separated line numbers are needed")
+        chosen = [p for p in chosen if p.line in wanted]
+        if not chosen:
+            ap.error(f"--lines = {args.lines!r}: no (sampled) mutation point on these lines")
     tests = args.tests or default_tests(rel)
     if not tests:
         raise SystemExit(f"mutate: no test file under tests/unit imports {rel}; pass --tests")
