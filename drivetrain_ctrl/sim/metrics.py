@@ -35,6 +35,7 @@ lock-up shock reaches it as jerk and shuffle (``jerk_max_m_s3``, ``accel_p2p_aft
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -427,11 +428,22 @@ def filtered_jerk(
         )
     grid = np.arange(float(t[0]), float(t[-1]), 1.0 / fs_hz)
     a = np.interp(grid, t, accel)
-    sos = signal.butter(2, cutoff_hz, btype="low", fs=fs_hz, output="sos")
+    sos = _butter_sos(float(cutoff_hz), float(fs_hz)).copy()  # scipy's filters want it writable
     pad = min(3 * (2 * sos.shape[0] + 1), a.shape[0] - 1)
     af = signal.sosfiltfilt(sos, a, padlen=max(pad, 0)) if a.shape[0] > 7 else a
     jk = np.gradient(af, 1.0 / fs_hz) if a.shape[0] > 1 else np.zeros_like(a)
     return grid, np.asarray(af, dtype=float), np.asarray(jk, dtype=float)
+
+
+@functools.lru_cache(maxsize=16)
+def _butter_sos(cutoff_hz: float, fs_hz: float) -> F64:
+    """The jerk filter's second-order sections (designed once per cutoff and rate: a
+    ``scipy.signal.butter`` design costs about as much as the filtering itself)."""
+    from scipy import signal
+
+    sos = np.asarray(signal.butter(2, cutoff_hz, btype="low", fs=fs_hz, output="sos"), dtype=float)
+    sos.setflags(write=False)  # shared: callers take a copy
+    return sos
 
 
 def _window(t: F64, t0: float, t1: float) -> NDArray[np.bool_]:
