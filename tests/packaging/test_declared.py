@@ -16,7 +16,6 @@ PACKAGE = REPO / "drivetrain_ctrl"
 #: declared dependencies not imported yet, with the reason they are declared (an entry must go
 #: once the package imports the module; the test checks that too)
 NOT_YET_IMPORTED: dict[str, str] = {
-    "cvxpy": "the design layer (robust fixed-structure tuning, certificates) of the next issue",
     "slycot": "python-control's H-infinity synthesis (mixsyn/hinfsyn) in the design layer",
     "dask": "parallel batch studies (dask.distributed) of the studies issue",
     "pyarrow": "the studies' Parquet result files (through pandas)",
