@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from distributed import WorkerPlugin
+from dask.distributed import WorkerPlugin
 
 from .case import Case, CaseError, run_case
 from .study import TEXT_METRICS, Criterion, Study, StudyError, load_study, sample_table

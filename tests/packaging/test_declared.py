@@ -17,8 +17,6 @@ PACKAGE = REPO / "drivetrain_ctrl"
 #: once the package imports the module; the test checks that too)
 NOT_YET_IMPORTED: dict[str, str] = {
     "slycot": "python-control's H-infinity synthesis (mixsyn/hinfsyn) in the design layer",
-    "dask": "parallel batch studies (dask.distributed) of the studies issue",
-    "pyarrow": "the studies' Parquet result files (through pandas)",
 }
 
 #: import names of distributions whose module is named otherwise
