@@ -433,3 +433,14 @@ def test_the_run_keys_name_the_drivetrain(runs: dict[str, Run]) -> None:
     g, af, _ = filtered_jerk(t, np.sin(3.0 * t), cutoff_hz=0.5)  # a cut-off below 1 Hz
     sos = signal.butter(2, 0.5, fs=1000.0, output="sos")
     np.testing.assert_allclose(af, signal.sosfiltfilt(sos, np.interp(g, t, np.sin(3.0 * t))))
+
+
+def test_jerk_difference_quotients_on_uneven_intervals() -> None:
+    """(left[k+1] - right[k]) / (t[k+1] - t[k]) written out, on intervals of 0.5 s and 1.5 s
+    (a zero-length interval skipped)."""
+    from drivetrain_ctrl.sim.metrics import jerk
+
+    t = np.array([0.0, 0.5, 0.5, 2.0])
+    right = np.array([1.0, 2.0, 4.0, 0.0])
+    left = np.array([1.0, 3.0, 5.0, 7.0])
+    assert jerk(t, right, left).tolist() == [(3.0 - 1.0) / 0.5, (7.0 - 4.0) / 1.5]
