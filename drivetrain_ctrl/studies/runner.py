@@ -385,8 +385,9 @@ def run_study(
                     _write_chunk(out / RESULTS, rows, schema)
                     n_chunks += 1
                     failed += sum(r["status"] == "failed" for r in rows)
+                    remaining = bar.total - bar.n - len(rows)
+                    bar.set_postfix(failed=failed, remaining=remaining, refresh=False)
                     bar.update(len(rows))
-                    bar.set_postfix(failed=failed, remaining=bar.total - bar.n, refresh=False)
                     fut.release()
         finally:
             if own_client:
