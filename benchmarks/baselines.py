@@ -437,6 +437,8 @@ class FastFlatSystem(FlatGeometry):
         b2, b3, b4, b5 = clu.b2, dmp.b3, gbx.b4, drl.b5
         fr_d = s_d * dmp.k23
         b34, taur, invDc = gbx.b34, self.tau_r, 1.0 / self.D_c
+        if gbx.backlash_damping == "contact" and self.g34 > 0.0 and reg[1] == 1:
+            b34 = 0.0  # the mesh damping acts only in contact: none in the gap (region 1)
         h45w, b45, h56, b56 = drl.h45 / self.D_c, drl.b45, drl.h56, drl.b56
         T_t = s_t * self.k_w * self.R_p
         invR = 1.0 / self.R_p

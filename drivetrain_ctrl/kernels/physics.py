@@ -43,6 +43,7 @@ class ChainData(NamedTuple):
     damp: F64  # (m,)
     c_table: I64  # (m,) spring table index, -1 none
     c_q: I64  # (m,) twist state index, -1 none
+    c_gap: I64  # (m,) spring-table region (the gap) where the damper is off, -1: never off
     f_kind: I64  # (nf,) 0 coupling, 1 ground
     f_idx: I64  # (nf,) coupling or body index
     f_scale: F64
@@ -67,7 +68,7 @@ class ChainData(NamedTuple):
     nx: int
 
 
-# Helpers take the arrays they need, not ChainData: passing the 33-array tuple into a helper costs
+# Helpers take the arrays they need, not ChainData: passing the 34-array tuple into a helper costs
 # about 0.6 us per call in reference counting (measured during development with perf and
 # micro-benchmarks; the end-to-end effect is in benchmarks/bench_simulate.py).
 @jit_inline
@@ -158,6 +159,17 @@ def mu_ratio(D: ChainData, f: int, x: F64, reg: I64) -> float:
 
 
 @jit_inline
+def damper_coefficient(D: ChainData, c: int, reg: I64) -> float:
+    """Damping of coupling ``c`` [N m s/rad or N s/m] in table regions ``reg``: ``damp[c]``, or
+    0 while its spring is in the region ``c_gap[c]`` (its backlash gap, for a damper that acts
+    only in contact). :func:`forces_into` writes the same test out (hot path)."""
+    d = D.damp[c]
+    if D.c_gap[c] >= 0 and reg[D.c_table[c]] == D.c_gap[c]:
+        d = 0.0
+    return d
+
+
+@jit_inline
 def forces_into(
     D: ChainData, x: F64, u: F64, fm: I64, reg: I64, tau: F64, ff: F64, ff_off: int
 ) -> float:
@@ -199,10 +211,14 @@ def forces_into(
             p_in += g * x[D.l_x[j]] * x[b]
     for c in range(ratio.shape[0]):
         w = x[c] - ratio[c] * x[c + 1]
-        T = D.damp[c] * w
-        if pw:
-            ff[ff_off + n + c] = D.damp[c] * w * w
         kt = D.c_table[c]
+        # the damper, off in its spring's gap if it acts only in contact (damper_coefficient)
+        d = D.damp[c]
+        if D.c_gap[c] >= 0 and reg[kt] == D.c_gap[c]:
+            d = 0.0
+        T = d * w
+        if pw:
+            ff[ff_off + n + c] = d * w * w
         if kt >= 0:
             r = reg[kt]
             T += t_s[kt, r] * x[D.c_q[c]] + t_o[kt, r]
@@ -590,8 +606,9 @@ def stored_energy(D: ChainData, x: F64) -> float:
 def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[float, F64]:
     """Power supplied [W] and power dissipated per element [W].
 
-    Dissipation layout: ``n`` bodies (viscous + quadratic to ground), ``m`` coupling dampers,
-    ``nf`` friction elements (kinetic torque times slip speed; stuck/open: 0).
+    Dissipation layout: ``n`` bodies (viscous + quadratic to ground), ``m`` coupling dampers
+    (:func:`damper_coefficient` times ``w^2``: 0 in the gap of a damper that acts only in
+    contact), ``nf`` friction elements (kinetic torque times slip speed; stuck/open: 0).
     """
     n = D.M.shape[0]
     m = D.ratio.shape[0]
@@ -610,7 +627,7 @@ def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[f
         p_in += g * x[D.l_x[j]] * x[b]
     for c in range(m):
         w = x[c] - D.ratio[c] * x[c + 1]
-        pd[n + c] = D.damp[c] * w * w
+        pd[n + c] = damper_coefficient(D, c, reg) * w * w
     lam = Lam @ forces(D, x, u, fm, reg)
     for f in range(nf):
         w = rel_speed(D, f, x)
@@ -655,9 +672,10 @@ def jacobians(
             dt[b, b] += D.l_gain[j] * D.t_s[kt, r] * x[D.l_x[j]]
     for c in range(D.ratio.shape[0]):
         r_c = D.ratio[c]
+        d = damper_coefficient(D, c, reg)
         row = np.zeros(nx)
-        row[c] += D.damp[c]
-        row[c + 1] -= D.damp[c] * r_c
+        row[c] += d
+        row[c + 1] -= d * r_c
         kt = D.c_table[c]
         if kt >= 0:
             row[D.c_q[c]] += D.t_s[kt, reg[kt]]
@@ -718,7 +736,7 @@ def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) 
     out = np.zeros(m)
     for c in range(m):
         w = x[c] - D.ratio[c] * x[c + 1]
-        T = D.damp[c] * w
+        T = damper_coefficient(D, c, reg) * w
         kt = D.c_table[c]
         if kt >= 0:
             T += table_value(D, kt, reg[kt], x[D.c_q[c]])

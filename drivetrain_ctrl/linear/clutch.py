@@ -11,6 +11,7 @@ import control
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import kernels as K
 from ..control.blocks import Controller, actuator_tf, require_controller
 from ..core.serialize import json_ready
 from ..core.validate import finite_float, is_finite_real, positive_float
@@ -362,8 +363,9 @@ class JudderThreshold:
     controller has integral action; ``c_crit`` the first of them (smallest ``|c|``) and ``which``
     (``"shuffle"`` or ``"dc"``); ``mu_slope_crit = c_crit / k13``; ``shuffle_frequency_hz`` at the
     crossing; figures (primary frame): ``J25`` [kg m^2], ``m_e`` vehicle mass referred [kg m^2],
-    ``h_t`` [N m/rad], ``b_t`` [N m s/rad], ``b_p`` (driven shaft to ground) and ``b_e`` (vehicle
-    road-load slope referred) [N m s/rad], ``b1_eff`` b_1', ``engine_factor`` Re of
+    ``h_t`` [N m/rad] and ``b_t`` [N m s/rad] in the op's backlash mode (in the gap 0, and
+    ``b_t`` too if it acts only in contact), ``b_p`` (driven shaft to ground) and ``b_e``
+    (vehicle road-load slope referred) [N m s/rad], ``b1_eff`` b_1', ``engine_factor`` Re of
     ``(J_1 jw + b_1')/(Z_e(jw) + c)`` at the crossing, ``k13`` [N m]."""
 
     c_shuffle_speed_source: float
@@ -443,7 +445,9 @@ def _reduced_figures(op: OperatingPoint) -> tuple[float, float, float, float, fl
     J = float(D.M[ip])
     me = float(D.M[iv]) / ratio**2
     b_e = float(D.visc[iv] + 2 * D.quad[iv] * abs(v)) / ratio**2
-    return J, me, h, float(D.damp[c]), float(D.visc[ip]), b_e
+    # the shaft's damping in the op's mode (0 in the gap if it acts only in contact)
+    b = float(K.damper_coefficient(D, c, op.mode.arrays()[1]))
+    return J, me, h, b, float(D.visc[ip]), b_e
 
 
 def judder_threshold(op: OperatingPoint, controller: Controller | None = None) -> JudderThreshold:

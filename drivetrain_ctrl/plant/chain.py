@@ -272,8 +272,16 @@ class Body:
 class Coupling:
     """Joins body ``c`` and ``c + 1``: ratio, and spring / damper / friction in parallel.
 
-    ``ratio`` [-] (or [1/m] from rotation to translation); ``damper`` [N m s/rad] in the upstream
-    frame; the spring's stiffness is in the upstream frame too.
+    ``ratio`` [-] (or [1/m] from rotation to translation); ``damper`` [N m s/rad or N s/m] in the
+    upstream frame; the spring's stiffness is in the upstream frame too.
+
+    ``damper_in_gap``: where the damper acts when the spring has a backlash gap. True (the
+    default; the car paper's model of the gearbox's b34): in every mode, in the gap too, where it
+    is the only link between the two bodies. False: only while the spring is in contact (modes
+    ``contact-`` and ``contact+``; no torque and no dissipation in the ``gap``), as in Modelica's
+    ElastoBacklash, but without its limit of the damper torque to the spring torque: at impact
+    the coupling's torque jumps by ``damper * w``, and it may pull while the contact opens.
+    False needs a spring with ``backlash > 0``.
     """
 
     name: str
@@ -281,6 +289,7 @@ class Coupling:
     spring: Spring | None = None
     damper: float = 0.0
     friction: Friction | None = None
+    damper_in_gap: bool = True
 
     def __post_init__(self) -> None:
         check_name("Coupling", "name", self.name)
@@ -288,8 +297,15 @@ class Coupling:
         check_finite(self.name, "damper", self.damper, lo=0.0)
         check_type(self.name, "spring", self.spring, Spring)
         check_type(self.name, "friction", self.friction, Friction)
+        check_type(self.name, "damper_in_gap", self.damper_in_gap, bool, optional=False)
         if self.spring is None and self.damper == 0.0 and self.friction is None:
             raise ValueError(f"{self.name}: a coupling needs a spring, a damper or a friction")
+        if not self.damper_in_gap and (self.spring is None or self.spring.backlash <= 0.0):
+            has = "no spring" if self.spring is None else "a spring without backlash"
+            raise ValueError(
+                f"{self.name}.damper_in_gap = False: the damper acts only in contact, which needs "
+                f"a spring with backlash > 0; the coupling has {has}"
+            )
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,10 +15,11 @@ Full model (:func:`full_chain`), bodies in order, each in its own frame:
 ====  =============  ===========================================================  =========
 
 Couplings: ``clutch`` (engine-disc, friction k12(x_c) mu(slip)), ``damper`` (disc-primary, spring
-phi_e and friction k23), ``gear`` (primary-secondary, ratio tau_r, teeth spring h34 with backlash
-g34 and damper b34, primary frame), ``axle`` (secondary-hub, ratio D_c, h45/b45 referred to the
-secondary shaft), ``tyre_hub`` (hub-tread, h56/b56), ``tyre`` (tread-vehicle, ratio 1/R_p,
-Coulomb limit k_w R_p: modes grip / slip+ / slip-).
+phi_e and friction k23), ``backlash`` (primary-secondary, ratio tau_r, teeth spring h34 with
+backlash g34 and damper b34, primary frame; b34 acts in the gap too unless
+``gearbox.backlash_damping`` is ``"contact"``), ``axle`` (secondary-hub, ratio D_c, h45/b45
+referred to the secondary shaft), ``tyre_hub`` (hub-tread, h56/b56), ``tyre`` (tread-vehicle,
+ratio 1/R_p, Coulomb limit k_w R_p: modes grip / slip+ / slip-).
 
 Engine friction is counted once: ``C_1 = C_G - b_1(omega_1)`` with ``b_1(omega) = b1 omega + c1
 sgn(omega)`` (so B = diag(0, b2, b3) in eq. (2)). ``C_G = K theta_f`` (paper) or
@@ -39,9 +40,13 @@ order in frequency this gives
 
     b_t = h_t^2 * (b34 / h34^2 + tau_t^2 * (b45 / h45^2 + b56 / h56^2))
 
-(all referred to the primary shaft). The tyre block is *not* kept: the reduction lumps the wheels
-into J25 (J5 rigid), so there is no wheel inertia left for the tyre to slip against; the reduced
-model assumes grip (:func:`tyre_force_margin` tells how far a trajectory is from the limit).
+(all referred to the primary shaft). With ``gearbox.backlash_damping = "contact"`` the lumped
+damper b_t acts only in contact too: in the gap the series chain (gap, h45/b45, h56/b56) carries
+the torque of its gap link, which is then zero, so the equivalent shaft carries none either (with
+``"always"`` the gap link carries b34 w, and the paper's reduced model keeps the whole b_t there).
+The tyre block is *not* kept: the reduction lumps the wheels into J25 (J5 rigid), so there is no
+wheel inertia left for the tyre to slip against; the reduced model assumes grip
+(:func:`tyre_force_margin` tells how far a trajectory is from the limit).
 """
 
 from __future__ import annotations
@@ -183,6 +188,13 @@ def input_ranges(p: DrivetrainParams) -> dict[str, tuple[float, float]]:
     }
 
 
+def _damper_in_gap(p: DrivetrainParams, gap: float) -> bool:
+    """``Coupling.damper_in_gap`` of the ``backlash`` coupling (full model: b34; reduced model:
+    the lumped b_t) from ``gearbox.backlash_damping``; with no gap (``g34_wheel = 0``) the two
+    choices are the same model, and the coupling has no gap to be off in."""
+    return p.gearbox.backlash_damping == "always" or gap == 0.0
+
+
 def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Chain:
     """The full drivetrain of Section II as a :class:`Chain` (slope [rad], positive uphill)."""
     _check_gear(p, gear)
@@ -228,6 +240,7 @@ def full_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> Cha
             ratio=tau_r,
             spring=Spring.linear(p.gearbox.h34, backlash=p.gearbox.g34_primary(gear), name="h34"),
             damper=p.gearbox.b34,
+            damper_in_gap=_damper_in_gap(p, p.gearbox.g34_primary(gear)),
         ),
         Coupling(
             "axle",
@@ -316,6 +329,7 @@ def reduced_chain(p: DrivetrainParams, *, gear: int = 1, slope: float = 0.0) -> 
             ratio=fig.tau_t / dl.R_p,
             spring=Spring.linear(fig.h_t, backlash=fig.g_t, name="h_t"),
             damper=fig.b_t,
+            damper_in_gap=_damper_in_gap(p, fig.g_t),
         ),
     )
     return Chain(

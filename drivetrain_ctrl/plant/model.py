@@ -217,11 +217,15 @@ class Model:
             return len(tabs) - 1
 
         c_table = [-1] * m
+        c_gap = [-1] * m  # the spring region in which a contact-only damper is off: the gap
         for c, cp in enumerate(couplings):
             if cp.spring is not None:
                 b_, s_, o_, rn = _pwl_spring(cp.spring)
                 nm = cp.name if cp.spring.backlash > 0 else f"{cp.name}.spring"
                 c_table[c] = add_table(K.ARG_TWIST, c, (b_, s_, o_), nm, names[c_q[c]], rn)
+                if not cp.damper_in_gap:
+                    assert rn is not None  # Coupling: damper_in_gap=False needs a backlash
+                    c_gap[c] = rn.index(BACKLASH_MODES[1])
 
         frictions: list[tuple[str, int, int, Friction]] = []
         for c, cp in enumerate(couplings):
@@ -300,6 +304,7 @@ class Model:
             damp=f64([c.damper for c in couplings]),
             c_table=i64(c_table),
             c_q=i64(c_q),
+            c_gap=i64(c_gap),
             f_kind=i64([fr[1] for fr in frictions]),
             f_idx=i64([fr[2] for fr in frictions]),
             f_scale=f64([fr[3].scale for fr in frictions]),
@@ -573,7 +578,8 @@ class Model:
         )
 
     def powers(self, x: F64, u: F64, mode: Mode) -> tuple[float, dict[str, float]]:
-        """Power supplied [W] and power dissipated by each element [W]."""
+        """Power supplied [W] and power dissipated by each element [W] (a coupling's damper: 0
+        in its backlash gap if it acts only in contact, ``Coupling.damper_in_gap`` False)."""
         x, u, fm, reg = self._arrays(x, u, mode)
         _, Lam = K.mode_matrices(self.data, fm)
         p_in, pd = K.powers(self.data, x, u, fm, reg, Lam)

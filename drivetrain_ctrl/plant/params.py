@@ -32,6 +32,8 @@ those whose default is the paper's own choice:
   ``brake.static_ratio``): 1.0, the paper's single ``k sgn()`` value;
 * ``clutch.mu_table``: flat, mu(slip)/mu(0) = 1 at every slip speed;
 * ``driveline.b5``: 0.0 (no viscous loss at the wheels);
+* ``gearbox.backlash_damping``: ``"always"``, the paper's mesh damping b34 in parallel with the
+  dead-zone spring, acting in the backlash gap too (``"contact"``: only while the teeth touch);
 * ``engine.full_load_curve`` may be omitted when ``engine.torque_model = "linear"`` (the paper's
   ``C_G = K theta``); it is required when ``torque_model = "map"``.
 
@@ -553,7 +555,7 @@ class DamperParams(_Section):
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class GearboxParams(_Section):
-    """Gearbox and differential: ratios, secondary inertia, mesh stiffness and backlash."""
+    """Gearbox and differential: ratios, secondary inertia, mesh stiffness, damping and backlash."""
 
     _section: ClassVar[str] = "gearbox"
 
@@ -584,6 +586,17 @@ class GearboxParams(_Section):
         "half backlash of the whole driveline lumped at the gear mesh, stored in the wheel frame "
         "(primary-frame value: g34_primary(gear) = g34_wheel * tau_r * D_c)",
         min=0.0,
+    )
+    backlash_damping: str = _param(
+        "-",
+        "-",
+        "where the mesh damping b34 acts: 'always' = in contact and in the backlash gap (the "
+        "paper: a damper in parallel with the dead-zone spring), 'contact' = only while the "
+        "teeth are in contact, none in the gap (as Modelica's ElastoBacklash); the reduced "
+        "model's lumped shaft damping b_t follows it. The same model when g34_wheel = 0",
+        kind="choice",
+        choices=("always", "contact"),
+        default="always",
     )
 
     @property

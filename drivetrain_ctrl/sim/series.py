@@ -97,9 +97,13 @@ def body_forces(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
 
 
 def _spring_damper(D: ChainData, X: F64, REG: I64, c: int) -> F64:
-    """(N,) torque of coupling ``c``'s spring and damper [N m] (upstream frame)."""
+    """(N,) torque of coupling ``c``'s spring and damper [N m] (upstream frame). The damper is
+    off where the spring is in region ``c_gap[c]``: the gap of a damper that acts only in
+    contact (:func:`~drivetrain_ctrl.kernels.physics.damper_coefficient`)."""
     T = D.damp[c] * (X[:, c] - D.ratio[c] * X[:, c + 1])
     kt = int(D.c_table[c])
+    if D.c_gap[c] >= 0:
+        T = np.where(REG[:, kt] == D.c_gap[c], 0.0, T)
     if kt >= 0:
         r = REG[:, kt]
         T = T + (D.t_s[kt, r] * X[:, D.c_q[c]] + D.t_o[kt, r])

@@ -187,8 +187,11 @@ def _full_reference(
     # damper, disc -> primary: spring phi_e(q_damper) + hysteresis friction k23 sgn
     T_damper = _damper_spring(dmp.spring.x, dmp.spring.y, q_damper) + _kinetic(m_damper, dmp.k23)
 
-    # gear mesh, primary frame: h34 deadzone(q, g34) + b34 (w3 - tau_r w_sec)
-    T_gear = gbx.h34 * _deadzone(q_backlash, g34) + gbx.b34 * (w3 - tau_r * w_sec)
+    # gear mesh, primary frame: h34 deadzone(q, g34) + b34 (w3 - tau_r w_sec); with
+    # backlash_damping "contact" b34 acts only while the teeth touch (|q| > g34)
+    contact = g34 == 0.0 or abs(q_backlash) > g34
+    b34 = gbx.b34 if gbx.backlash_damping == "always" or contact else 0.0
+    T_gear = gbx.h34 * _deadzone(q_backlash, g34) + b34 * (w3 - tau_r * w_sec)
 
     # half-shafts, WHEEL frame: h45 q_axle / D_c + b45 (w_sec / D_c - w_hub)
     T_axle_w = drl.h45 * (q_axle / D_c) + drl.b45 * (w_sec / D_c - w_hub)

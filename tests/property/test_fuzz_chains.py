@@ -1,9 +1,9 @@
 """Random-chain fuzzing of the switching simulator (issue 19, item 3).
 
 Random chains of 2 to 6 bodies (rotational and translational), couplings with ratios, linear and
-piecewise springs with and without backlash, dampers, frictions with static ratios > 1 and mu
-tables, ground frictions, lagged sources, and input signals (steps, ramps, sines, tables),
-including capacity inputs that cross zero. For every draw the run ends normally or with a
+piecewise springs with and without backlash, dampers (in a gap too, or only in contact),
+frictions with static ratios > 1 and mu tables, ground frictions, lagged sources, and input
+signals (steps, ramps, sines, tables), including capacity inputs that cross zero. For every draw the run ends normally or with a
 documented error (:class:`ZenoError`, :class:`InputRangeError`, the step-size stop), never a
 crash, a hang or a NaN; the energy residual is <= 1e-6; no element dissipates a clearly negative
 power; and every recorded mode is consistent with the guards at its sample.
@@ -78,9 +78,13 @@ def frictions(draw: Any, name: str, inputs: list[str]) -> Friction:
 
 
 @st.composite
-def springs(draw: Any, name: str) -> Spring:
+def springs(draw: Any, name: str, *, gap: bool = False) -> Spring:
+    """A spring; with ``gap`` always with a backlash."""
     k1 = draw(st.floats(1.0, 2000.0))
-    backlash = draw(st.sampled_from([0.0, 0.0, draw(st.floats(0.001, 0.05))]))
+    if gap:
+        backlash = draw(st.floats(0.001, 0.05))
+    else:
+        backlash = draw(st.sampled_from([0.0, 0.0, draw(st.floats(0.001, 0.05))]))
     if draw(st.booleans()):
         return Spring.linear(k1, backlash=backlash, name=name)
     # piecewise: a soft first stage, then stiffer
@@ -113,7 +117,11 @@ def signals(draw: Any, *, capacity: bool) -> sg.Signal:
 
 
 @st.composite
-def cases(draw: Any) -> tuple[Model, np.ndarray, dict[str, sg.Signal], float]:
+def cases(
+    draw: Any, *, contact_only: bool = False
+) -> tuple[Model, np.ndarray, dict[str, sg.Signal], float]:
+    """A random chain, initial state, input signals and end time. With ``contact_only`` every
+    spring has a backlash and a damper that acts only in contact (``damper_in_gap=False``)."""
     n = draw(st.integers(2, 6))
     inputs: list[str] = []
     kinds = ["rotational"] * n
@@ -144,10 +152,19 @@ def cases(draw: Any) -> tuple[Model, np.ndarray, dict[str, sg.Signal], float]:
     for c in range(n - 1):
         rot_to_trans = kinds[c] == "rotational" and kinds[c + 1] == "translational"
         ratio = draw(st.floats(1.0, 5.0)) if rot_to_trans else draw(st.floats(0.3, 3.0))
-        spring = draw(springs(f"k{c}")) if draw(st.integers(0, 2)) > 0 else None
+        spring = draw(springs(f"k{c}", gap=contact_only)) if draw(st.integers(0, 2)) > 0 else None
         fr = draw(frictions(f"f{c}", inputs)) if draw(st.booleans()) or spring is None else None
-        damper = draw(st.sampled_from([0.0, draw(st.floats(0.0, 2.0))]))
-        couplings.append(Coupling(f"c{c}", ratio=ratio, spring=spring, damper=damper, friction=fr))
+        in_gap = not (contact_only and spring is not None)
+        if in_gap:
+            damper = draw(st.sampled_from([0.0, draw(st.floats(0.0, 2.0))]))
+        else:
+            damper = draw(st.floats(0.05, 2.0))
+        couplings.append(
+            Coupling(
+                f"c{c}", ratio=ratio, spring=spring, damper=damper, friction=fr,
+                damper_in_gap=in_gap,
+            )
+        )  # fmt: skip
     sources = []
     if draw(st.booleans()):
         sources.append(
@@ -225,13 +242,20 @@ def test_random_chains_fast(case):
     check_case(case)
 
 
+@FAST
+@given(cases(contact_only=True))
+def test_random_chains_contact_only_dampers_fast(case):
+    """Every spring with a backlash and a damper that acts only in contact."""
+    check_case(case)
+
+
 @pytest.mark.slow
 @settings(
     max_examples=1500,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-@given(cases())
+@given(st.booleans().flatmap(lambda contact_only: cases(contact_only=contact_only)))
 def test_random_chains_long(case):
     check_case(case)
 

@@ -38,7 +38,7 @@ def variant_params(name: str):
     p = default_params()
     if name == "default":
         return p
-    # map torque model, falling mu(slip), static > kinetic everywhere
+    # map torque model, falling mu(slip), static > kinetic everywhere, b34 only in contact
     return p.replace(
         **{
             "engine.torque_model": "map",
@@ -47,6 +47,7 @@ def variant_params(name: str):
             "damper.static_ratio": 1.2,
             "vehicle.tyre_static_ratio": 1.1,
             "brake.static_ratio": 1.25,
+            "gearbox.backlash_damping": "contact",
         }
     )
 
@@ -320,6 +321,7 @@ def random_chain(draw, max_frictions: int = 4) -> Chain:
                 spring=spring,
                 damper=damper,
                 friction=fr,
+                damper_in_gap=draw(st.booleans()) if spring and spring.backlash else True,
             )
         )
     sources = ()

@@ -36,6 +36,7 @@ def drivetrain_model(kind: str, variant: bool, slope: float) -> Model:
             **{
                 "engine.torque_model": "map",
                 "clutch.mu_table": {"x": [0.0, 20.0, 60.0], "y": [1.0, 0.93, 0.88]},
+                "gearbox.backlash_damping": "contact",
             }
         )
     build = full_model if kind == "full" else reduced_model
@@ -258,6 +259,7 @@ def random_chain(draw) -> Chain:
                 spring=spring,
                 damper=draw(st.sampled_from([0.0, 0.4])),
                 friction=fr,
+                damper_in_gap=draw(st.booleans()) if spring and spring.backlash else True,
             )
         )
     sources = ()

@@ -32,9 +32,11 @@ CASES: dict[str, tuple[dict[str, object], int, float]] = {
     "falling_mu": ({"clutch.mu_table": FALLING_MU}, 1, 0.0),
     "uphill": ({}, 1, 0.12),
     "gear3": ({}, 3, 0.0),
+    "contact": ({"gearbox.backlash_damping": "contact"}, 2, 0.0),
     "all": (
         {
             "engine.torque_model": "map",
+            "gearbox.backlash_damping": "contact",
             "clutch.mu_table": FALLING_MU,
             "clutch.static_ratio": 1.3,
             "driveline.b5": 0.7,
@@ -216,6 +218,7 @@ def _energy_balance(
     M.append(vh.M_v)
     g = gb.g34_primary(gear)
     gap = max(abs(qb) - g, 0.0) * np.sign(qb)
+    b34 = gb.b34 if gb.backlash_damping == "always" or abs(qb) > g else 0.0
     dE = [M[i] * x[i] * xd[i] for i in range(7)] + [
         dm.spring(qd) * xd[7],
         gb.h34 * gap * xd[8],
@@ -244,7 +247,7 @@ def _energy_balance(
         dl.b5 * wh**2,
         vh.b_v * v**2,
         0.5 * vh.rho_a * vh.C_x * vh.S * abs(v) ** 3,
-        gb.b34 * (w3 - tr * ws) ** 2,
+        b34 * (w3 - tr * ws) ** 2,
         dl.b45 * (ws / Dc - wh) ** 2,
         dl.b56 * (wh - wt) ** 2,
         k12 * s("clutch") * (w1 - w2),
