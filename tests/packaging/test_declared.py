@@ -15,9 +15,7 @@ PACKAGE = REPO / "drivetrain_ctrl"
 
 #: declared dependencies not imported yet, with the reason they are declared (an entry must go
 #: once the package imports the module; the test checks that too)
-NOT_YET_IMPORTED: dict[str, str] = {
-    "slycot": "python-control's H-infinity synthesis (mixsyn/hinfsyn) in the design layer",
-}
+NOT_YET_IMPORTED: dict[str, str] = {}
 
 #: import names of distributions whose module is named otherwise
 IMPORT_NAME = {"tomli-w": "tomli_w"}
