@@ -19,7 +19,9 @@ from drivetrain_ctrl.design.certificates import (
     sector_certificate,
     zoh_with_delay,
 )
+from drivetrain_ctrl.design.checks import LoopCheck, check_grid, check_loop, check_plant_set
 from drivetrain_ctrl.design.clutch import ClutchPlantSet, clutch_plant_set
+from drivetrain_ctrl.design.controllers import INTEGRATORS, pid_controller
 from drivetrain_ctrl.design.hinf import (
     HinfDesign,
     HinfSpec,
@@ -44,6 +46,12 @@ __all__ = [
     "PlantSet",
     "as_plant_set",
     "frequency_grid",
+    "LoopCheck",
+    "check_loop",
+    "check_plant_set",
+    "check_grid",
+    "INTEGRATORS",
+    "pid_controller",
     "PIDesign",
     "design_pi",
     "pi_controller_tf",

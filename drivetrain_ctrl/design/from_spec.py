@@ -41,7 +41,7 @@ The methods (:data:`METHODS`) and the options their ``[design]`` table takes:
     :func:`~drivetrain_ctrl.design.pi.design_pi` on one plant of the set, ``nominal`` (index;
     default: the first plant whose delay is the controller file's, i.e. the nominal point of the
     first instant): ``wc`` [rad/s], ``phase_margin`` [deg],
-    ``ms``, ``method`` (discrete integrator), ``pade_order``; the PI is then checked on every
+    ``ms``, ``integrator`` (discrete integrator), ``pade_order``; the PI is then checked on every
     plant of the set.
 ``robust-pi``, ``pid``
     :func:`~drivetrain_ctrl.design.robust.robust_pi` / ``robust_pid`` over the whole set: the
@@ -54,8 +54,9 @@ The methods (:data:`METHODS`) and the options their ``[design]`` table takes:
     ``W1``, ``W2``, ``W3`` as
     tables ``{num = [...], den = [...]}`` (continuous, descending powers of s).
 
-Every method's achieved figures come per plant from its own independent check on a dense grid
-with the exact delay (:class:`PlantFigures`); the *limiting* plants are, for the robust tuners,
+Every method's achieved figures come per plant from the design tools' loop check
+(:func:`~drivetrain_ctrl.design.checks.check_loop`, a dense grid with the exact delay) of its
+controller (:class:`PlantFigures`); the *limiting* plants are, for the robust tuners,
 those whose constraint is active, else the plant with the largest ``|S|``.
 
 The controller file (:class:`~drivetrain_ctrl.control.laws.ControllerSpec`): a PI that is
@@ -97,11 +98,10 @@ from ..scenarios.scenario import load_scenario
 from ..sim.metrics import engagement_metrics
 from ..sim.run import run_scenario
 from ..sim.simulator import ZenoError
-from . import robust as _robust
+from .checks import LoopCheck, check_plant_set, worst_figures
 from .clutch import ClutchPlantSet, clutch_plant_set
 from .hinf import HinfDesign, HinfSpec, hinf_mixsyn
 from .pi import PIDesign, design_pi
-from .plants import frequency_grid
 from .robust import RobustSpec, RobustTuning, robust_pi, robust_pid
 
 __all__ = [
@@ -310,8 +310,8 @@ def load_design_spec(source: str | Path | Mapping[str, Any] | DesignSpec) -> Des
 
 @dataclass(frozen=True)
 class PlantFigures:
-    """One plant's loop with the designed controller (the method's own independent check, on a
-    dense grid with the exact delay): ``ms``, ``mt`` peak ``|S|``, ``|T|``; ``ks`` peak ``|K S|``
+    """One plant's loop with the designed controller (a row of its
+    :class:`~drivetrain_ctrl.design.checks.LoopCheck`, a dense grid with the exact delay): ``ms``, ``mt`` peak ``|S|``, ``|T|``; ``ks`` peak ``|K S|``
     [m s/rad]; ``gain_margin_db``, ``phase_margin_deg``, ``crossover_rad_s`` (None: no such
     crossover); ``disk_margin_db``, ``disk_margin_deg`` (symmetric disk margin); ``stable``
     (None: not checked); ``limiting``: the plant limits the design."""
@@ -329,7 +329,8 @@ class PlantFigures:
     limiting: bool = False
 
 
-def _from_robust_check(c: Any, limiting: bool) -> PlantFigures:
+def _figures(c: LoopCheck, limiting: bool = False) -> PlantFigures:
+    """The row of one :class:`~drivetrain_ctrl.design.checks.LoopCheck`."""
     return PlantFigures(
         plant=c.name,
         ms=c.ms,
@@ -342,22 +343,6 @@ def _from_robust_check(c: Any, limiting: bool) -> PlantFigures:
         disk_margin_deg=c.disk_margin_deg,
         stable=c.stable,
         limiting=limiting,
-    )
-
-
-def _from_hinf_check(c: Any) -> PlantFigures:
-    dgm, dpm = _robust._disk_figures(float(c.disk_margin))
-    return PlantFigures(
-        plant=c.name,
-        ms=c.ms,
-        mt=c.mt,
-        ks=c.ks,
-        gain_margin_db=c.gain_margin_db,
-        phase_margin_deg=c.phase_margin_deg,
-        crossover_rad_s=c.crossover_rad_s,
-        disk_margin_db=dgm,
-        disk_margin_deg=dpm,
-        stable=c.stable,
     )
 
 
@@ -403,23 +388,10 @@ class DesignRun:
     def worst(self) -> dict[str, Any]:
         """The worst figures over the set: max Ms, Mt, ``|KS|``; min GM, PM, disk margin; the
         crossover range; all stable (None if one was not checked)."""
-        ps = self.plants
-        gms = [p.gain_margin_db for p in ps if p.gain_margin_db is not None]
-        pms = [p.phase_margin_deg for p in ps if p.phase_margin_deg is not None]
-        wcs = [p.crossover_rad_s for p in ps if p.crossover_rad_s is not None]
-        flags = [p.stable for p in ps]
-        stable = False if False in flags else (None if None in flags else True)
+        # the clutch loop's |KS| unit in the key (controller output [m/s] per slip [rad/s])
         return {
-            "n_plants": len(ps),
-            "ms_max": max(p.ms for p in ps),
-            "mt_max": max(p.mt for p in ps),
-            "ks_max_m_s_rad": max(p.ks for p in ps),
-            "gain_margin_db_min": min(gms) if gms else None,
-            "phase_margin_deg_min": min(pms) if pms else None,
-            "disk_margin_db_min": min(p.disk_margin_db for p in ps),
-            "crossover_rad_s_min": min(wcs) if wcs else None,
-            "crossover_rad_s_max": max(wcs) if wcs else None,
-            "all_stable": stable,
+            ("ks_max_m_s_rad" if k == "ks_max" else k): v
+            for k, v in worst_figures(self.plants).items()
         }
 
     def check(self) -> SwitchingCheck:
@@ -568,19 +540,16 @@ def design_from_spec(
         result = design_pi(pset[nominal], **opts)
         assert isinstance(result, PIDesign)
         C = result.controller
-        w = _robust._check_grid(frequency_grid(pset), pset.dt, 4000)
-        rows = _mark_worst_ms(
-            [_from_robust_check(_robust._check_plant(p, C, w, 5), False) for p in pset]
-        )
+        rows = _mark_worst_ms([_figures(c) for c in check_plant_set(pset, C)])
         met, message = result.feasible, result.message or "the specification is met"
-        ctrl = _pi_controller(cname, result.kp, result.ki, result.dt, result.method, C, form)
+        ctrl = _pi_controller(cname, result.kp, result.ki, result.dt, result.integrator, C, form)
         extra: dict[str, Any] = {"kp": result.kp, "ki": result.ki, "rule": result.rule}
     elif method in ("robust-pi", "pid"):
         tuner = robust_pi if method == "robust-pi" else robust_pid
         result = tuner(pset, **opts)
         assert isinstance(result, RobustTuning)
         lim = set(result.limiting)
-        rows = [_from_robust_check(c, c.name in lim) for c in result.plants]
+        rows = [_figures(c, c.name in lim) for c in result.plants]
         met, message = result.converged, result.message
         C = result.controller
         if result.structure == "pi":
@@ -603,7 +572,7 @@ def design_from_spec(
             K, checks = result.controller_sampled, result.checks_sampled
         else:
             K, checks = result.controller_reduced, result.checks_reduced
-        rows = _mark_worst_ms([_from_hinf_check(c) for c in checks])
+        rows = _mark_worst_ms([_figures(c) for c in checks])
         met = bool(result.specs_met)
         message = (
             f"gamma = {result.gamma:.4g} (re-checked {result.norm_check:.4g}), controller order "

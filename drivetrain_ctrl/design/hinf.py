@@ -76,7 +76,6 @@ import subprocess
 import sys
 import time
 import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -87,14 +86,15 @@ import scipy.linalg as sla
 from numpy.typing import NDArray
 
 from ..core.serialize import json_ready
-from ..core.validate import did_you_mean, real_number
+from ..core.validate import real_number
 from . import _hinf_worker
+from .checks import LoopCheck, check_plant_set, worst_figures
+from .options import frequency_vector, spec_with_options
 from .plants import Plant, PlantSet, as_plant_set, frequency_grid
 
 __all__ = [
     "HinfSpec",
     "MixsynWeights",
-    "HinfLoopCheck",
     "HinfDesign",
     "HinfTimeoutError",
     "HinfSynthesisError",
@@ -227,18 +227,7 @@ class HinfSpec:
             real_number("gamma_backoff", self.gamma_backoff, lo=1e-6, hi=1.0),
         )
         if self.omega is not None:
-            try:
-                w = np.asarray(self.omega, dtype=float)
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"omega = {self.omega!r}: a 1-D grid [rad/s] is needed") from exc
-            if w.ndim != 1 or w.size < 10:
-                raise ValueError(f"omega = {self.omega!r}: a 1-D grid of >= 10 frequencies [rad/s]")
-            if not (np.all(np.isfinite(w)) and np.all(w > 0) and np.all(np.diff(w) > 0)):
-                raise ValueError(
-                    f"omega = {self.omega!r}: frequencies must be finite, > 0 and strictly "
-                    "increasing [rad/s]"
-                )
-            s(self, "omega", tuple(float(x) for x in w))
+            s(self, "omega", frequency_vector("omega", self.omega, 10))
 
     @property
     def weights_given(self) -> bool:
@@ -255,17 +244,6 @@ class HinfSpec:
                 v = {"num": t.num[0][0].tolist(), "den": t.den[0][0].tolist(), "dt": t.dt}
             d[f.name] = v
         return json_ready(d)
-
-
-def _spec_from(spec: HinfSpec | None, options: Mapping[str, Any]) -> HinfSpec:
-    if spec is not None and not isinstance(spec, HinfSpec):
-        raise TypeError(f"hinf_mixsyn: spec = {spec!r}: must be a HinfSpec or None")
-    names = [f.name for f in dataclasses.fields(HinfSpec)]
-    for k, v in options.items():
-        if k not in names:
-            hint = did_you_mean(k, names) or f"; options: {names}"
-            raise ValueError(f"hinf_mixsyn: unknown option {k} = {v!r}{hint}")
-    return dataclasses.replace(spec or HinfSpec(), **options)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -594,76 +572,6 @@ def _synthesise(P: control.StateSpace, time_limit: float, backoff: float) -> tup
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class HinfLoopCheck:
-    """One plant closed by one controller, checked on a dense grid with the exact delay.
-
-    ``name`` of the plant; ``stable`` (closed-loop poles; a continuous delay by a Pade
-    approximation); ``ms``, ``mt``, ``ks`` = max ``|S|``, ``|T|``, ``|K S|`` [u/y];
-    ``gain_margin_db``, ``phase_margin_deg``, ``crossover_rad_s`` (python-control
-    ``stability_margins`` of the exact frequency response; None with a reason if there is no
-    crossover); ``disk_margin`` symmetric alpha = ``1/max|S - 1/2|``; ``reasons``."""
-
-    name: str
-    stable: bool
-    ms: float
-    mt: float
-    ks: float
-    gain_margin_db: float | None
-    phase_margin_deg: float | None
-    crossover_rad_s: float | None
-    disk_margin: float
-    reasons: tuple[tuple[str, str], ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        d["reasons"] = dict(self.reasons)
-        return json_ready(d)
-
-
-def _check(p: Plant, K: control.StateSpace, w: F64, pade_order: int) -> HinfLoopCheck:
-    dt = p.dt
-    x = np.exp(1j * w * dt) if dt else 1j * w
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        Kw = np.asarray(K(x, warn_infinite=False), dtype=complex).reshape(-1)
-    L = p.freqresp(w) * Kw
-    S = 1.0 / (1.0 + L)
-    T = L * S
-    reasons: list[tuple[str, str]] = []
-    Pr = control.ss(p.with_pade(pade_order))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        # exact: the rational loop without a delay, else the exact frequency response
-        data = control.frd(L, w) if p.delay else Pr * K
-        gm, pm, _sm, _wpc, wgc, _wms = control.stability_margins(data)
-    gm_db = pm_v = wgc_v = None
-    if np.isfinite(gm) and gm > 0:
-        gm_db = 20.0 * math.log10(float(gm))
-    else:
-        reasons.append(("gain_margin_db", "no phase crossover on the check grid"))
-    if np.isfinite(pm) and np.isfinite(wgc) and wgc > 0:
-        pm_v, wgc_v = float(pm), float(wgc)
-    else:
-        reasons.append(("phase_margin_deg", "no gain crossover on the check grid"))
-    cl = control.feedback(Pr * K, 1)
-    stable = _stable(cl)
-    if p.delay and not p.is_discrete:
-        reasons.append(("stable", f"poles with a Pade approximation of order {pade_order}"))
-    return HinfLoopCheck(
-        name=p.name,
-        stable=stable,
-        ms=float(np.max(np.abs(S))),
-        mt=float(np.max(np.abs(T))),
-        ks=float(np.max(np.abs(Kw * S))),
-        gain_margin_db=gm_db,
-        phase_margin_deg=pm_v,
-        crossover_rad_s=wgc_v,
-        disk_margin=1.0 / float(np.max(np.abs(S - 0.5))),
-        reasons=tuple(reasons),
-    )
-
-
 # ---------------------------------------------------------------------------------------------
 # result
 # ---------------------------------------------------------------------------------------------
@@ -683,7 +591,7 @@ class HinfDesign:
     weighted closed-loop norm re-computed by ``control.linfnorm``, ``norm_check_grid`` its
     largest value on the dense grid, ``norm_reduced`` the same with the reduced controller (all
     on the synthesis plant; for a sampled set in discrete time); ``specs_met`` is ``gamma <= 1``.
-    ``checks_full``, ``checks_reduced``, ``checks_sampled``: :class:`HinfLoopCheck` per plant of
+    ``checks_full``, ``checks_reduced``, ``checks_sampled``: :class:`~drivetrain_ctrl.design.checks.LoopCheck` per plant of
     the set. ``weights`` (:class:`MixsynWeights`, continuous / w-plane), ``synthesis_plant`` the
     plant the synthesis saw (Pade, shifted poles; w-plane for a sampled set), ``nominal`` its
     index, ``integrators`` the number of controller poles moved to 0 (or kept as slow poles),
@@ -701,9 +609,9 @@ class HinfDesign:
     norm_check_grid: float
     norm_reduced: float
     specs_met: bool
-    checks_full: tuple[HinfLoopCheck, ...]
-    checks_reduced: tuple[HinfLoopCheck, ...]
-    checks_sampled: tuple[HinfLoopCheck, ...]
+    checks_full: tuple[LoopCheck, ...]
+    checks_reduced: tuple[LoopCheck, ...]
+    checks_sampled: tuple[LoopCheck, ...]
     weights: MixsynWeights
     synthesis_plant: control.StateSpace
     nominal: int
@@ -731,18 +639,18 @@ class HinfDesign:
     def summary(self) -> str:
         """One paragraph: gamma and its check, orders, the worst margins over the set."""
 
-        def worst(checks: tuple[HinfLoopCheck, ...]) -> str:
+        def worst(checks: tuple[LoopCheck, ...]) -> str:
             if not checks:
                 return "-"
-            ok = all(c.stable for c in checks)
-            pms = [c.phase_margin_deg for c in checks if c.phase_margin_deg is not None]
-            gms = [c.gain_margin_db for c in checks if c.gain_margin_db is not None]
-            ms = max(c.ms for c in checks)
-            pm = f"{min(pms):.1f} deg" if pms else "-"
-            gm = f"{min(gms):.1f} dB" if gms else "inf"
+            w = worst_figures(checks)
+            pm = (
+                "-" if w["phase_margin_deg_min"] is None else f"{w['phase_margin_deg_min']:.1f} deg"
+            )
+            gm = "inf" if w["gain_margin_db_min"] is None else f"{w['gain_margin_db_min']:.1f} dB"
+            bad = ", ".join(c.name for c in checks if not c.stable)
             return (
-                f"{'all stable' if ok else 'UNSTABLE on ' + ', '.join(c.name for c in checks if not c.stable)}"
-                f", worst PM {pm}, GM {gm}, Ms {ms:.3g}"
+                f"{'UNSTABLE on ' + bad if bad else 'all stable'}"
+                f", worst PM {pm}, GM {gm}, Ms {w['ms_max']:.3g}"
             )
 
         met = (
@@ -918,7 +826,7 @@ def hinf_mixsyn(plants: Any, *, spec: HinfSpec | None = None, **options: Any) ->
     :class:`HinfTimeoutError` past ``time_limit`` and :class:`HinfSynthesisError` when slycot
     finds no controller (both say what to change). See the module docstring for the method.
     """
-    sp = _spec_from(spec, options)
+    sp = spec_with_options(HinfSpec, "hinf_mixsyn", spec, options)
     pset = as_plant_set(plants)
     dt = pset.dt
     if sp.nominal >= len(pset):
@@ -1117,12 +1025,12 @@ def hinf_mixsyn(plants: Any, *, spec: HinfSpec | None = None, **options: Any) ->
 
     wc_nom = None
     w_all = grid_for(pset, None if dt else w_ref)
-    checks_full = tuple(_check(p, K_out, w_all, sp.check_pade_order) for p in pset)
-    checks_red = tuple(_check(p, K_red_out, w_all, sp.check_pade_order) for p in pset)
+    checks_full = check_plant_set(pset, K_out, grid=w_all, pade_order=sp.check_pade_order)
+    checks_red = check_plant_set(pset, K_red_out, grid=w_all, pade_order=sp.check_pade_order)
     wc_nom = checks_red[sp.nominal].crossover_rad_s
 
     K_samp = None
-    checks_samp: tuple[HinfLoopCheck, ...] = ()
+    checks_samp: tuple[LoopCheck, ...] = ()
     if sp.dt is not None:
         from .certificates import zoh_with_delay
 
@@ -1133,7 +1041,7 @@ def hinf_mixsyn(plants: Any, *, spec: HinfSpec | None = None, **options: Any) ->
             [Plant(zoh_with_delay(p.sys, Ts, delay=p.delay), name=p.name) for p in pset]
         )
         ws = grid_for(sampled, None)
-        checks_samp = tuple(_check(p, K_samp, ws, sp.check_pade_order) for p in sampled)
+        checks_samp = check_plant_set(sampled, K_samp, grid=ws, pade_order=sp.check_pade_order)
         notes.append(
             f"Sampled variant: Tustin at dt = {Ts:g} s"
             + (f", prewarped at the crossover {pw:.4g} rad/s" if pw else "")

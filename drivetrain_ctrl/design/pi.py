@@ -5,7 +5,8 @@ SISO python-control plant (continuous or discrete, with an exact input delay thr
 :meth:`~drivetrain_ctrl.design.plants.Plant.freqresp`).
 
 The controller is ``C = kp + ki F`` with ``F = 1/s`` (continuous) or, for a discrete plant with
-sample period ``Ts``, the discrete integrator of ``method``:
+sample period ``Ts``, the discrete integrator ``integrator``
+(:mod:`~drivetrain_ctrl.design.controllers`, shared with the robust tuners):
 
 * ``"forward"`` (default; the integrator of the shipped ``pi``/``pi-10ms`` controllers,
   :meth:`~drivetrain_ctrl.control.laws.ControllerSpec.lti`): ``F = Ts / (z - 1)``;
@@ -35,13 +36,15 @@ closest design a PI can reach, with ``feasible=False`` and a message saying what
 (e.g. 60 deg at a crossover where the plant's phase is already -135 deg would need phase lead:
 the closest PI there is a P controller, ``ki = 0``, with 45 deg).
 
-**Achieved figures** are computed independently of the closed form: ``phase_margin``,
-``gain_margin_db`` and ``crossover`` by python-control's ``stability_margins`` on the loop's
-frequency response with the delay applied exactly (a ``FrequencyResponseData`` on a dense grid);
-``ms``, ``mt`` on that grid; ``stable`` and :attr:`PIDesign.margins` (disk margin, closed-loop
-poles, :func:`~drivetrain_ctrl.linear.margins.loop_margins`) on the rational loop, where a
-continuous delay is a Pade approximation of order ``pade_order`` and a discrete one ``z^-k``
-(exact; the delay must then be a multiple of the sample period).
+**Achieved figures** are computed independently of the closed form, by the design tools' loop
+check (:func:`~drivetrain_ctrl.design.checks.check_loop`, on a dense grid): ``phase_margin``,
+``gain_margin_db`` and ``crossover`` by python-control's ``stability_margins`` (of the rational
+loop when the plant has no delay, else of the frequency response with the delay applied
+exactly); ``ms``,
+``mt`` on the grid; ``stable`` from the closed-loop poles; :attr:`PIDesign.margins` (disk
+margin, closed-loop poles, :func:`~drivetrain_ctrl.linear.margins.loop_margins`) on the rational
+loop. There a continuous delay is a Pade approximation of order ``pade_order`` and a discrete one
+``z^-k`` (exact; the delay must then be a multiple of the sample period).
 """
 
 from __future__ import annotations
@@ -57,13 +60,16 @@ import scipy.optimize
 from numpy.typing import NDArray
 
 from drivetrain_ctrl.core.validate import real_number
+from drivetrain_ctrl.design.checks import check_loop
+from drivetrain_ctrl.design.controllers import (
+    check_integrator,
+    integrator_response,
+    pid_controller,
+)
 from drivetrain_ctrl.design.plants import Plant, as_plant_set, frequency_grid
 from drivetrain_ctrl.linear.margins import LoopMargins, loop_margins
 
-__all__ = ["PIDesign", "design_pi", "pi_controller_tf", "pi_gains_at", "METHODS"]
-
-#: the discrete integrators of a sampled PI (module docstring)
-METHODS: tuple[str, ...] = ("forward", "backward", "tustin")
+__all__ = ["PIDesign", "design_pi", "pi_controller_tf", "pi_gains_at"]
 
 #: default phase margin [deg] when neither a margin nor an Ms bound is given
 DEFAULT_PHASE_MARGIN = 60.0
@@ -75,40 +81,12 @@ C128 = NDArray[np.complex128]
 F64 = NDArray[np.float64]
 
 
-def _integrator_response(w: F64, dt: float, method: str) -> C128:
-    """``F`` of the module docstring at ``w`` [rad/s]."""
-    if dt == 0.0:
-        return np.asarray(1.0 / (1j * w), dtype=complex)
-    z = np.exp(1j * w * dt)
-    if method == "forward":
-        return np.asarray(dt / (z - 1.0), dtype=complex)
-    if method == "backward":
-        return np.asarray(dt * z / (z - 1.0), dtype=complex)
-    return np.asarray(0.5 * dt * (z + 1.0) / (z - 1.0), dtype=complex)
-
-
-def pi_controller_tf(kp: float, ki: float, *, dt: float = 0.0, method: str = "forward") -> Any:
+def pi_controller_tf(kp: float, ki: float, *, dt: float = 0.0, integrator: str = "forward") -> Any:
     """The PI ``kp + ki F`` as a python-control ``TransferFunction``: ``(kp s + ki)/s``
-    continuous (``dt = 0``), or discrete with sample period ``dt`` [s] and the integrator of
-    ``method`` (module docstring). ``kp`` [plant input per error unit], ``ki`` [same per s]."""
-    kp = real_number("kp", kp)
-    ki = real_number("ki", ki)
-    dt = real_number("dt", dt, lo=0.0, unit="s")
-    if method not in METHODS:
-        raise ValueError(f"method = {method!r}: must be one of {METHODS}")
-    if dt == 0.0:
-        return control.tf([kp], [1.0]) if ki == 0 else control.tf([kp, ki], [1.0, 0.0])
-    if ki == 0:
-        return control.tf([kp], [1.0], dt)
-    if method == "forward":
-        num = [kp, ki * dt - kp]
-    elif method == "backward":
-        num = [kp + ki * dt, -kp]
-    else:
-        num = [kp + 0.5 * ki * dt, 0.5 * ki * dt - kp]
-    if kp == 0 and method == "forward":
-        num = [ki * dt]
-    return control.tf(num, [1.0, -1.0], dt)
+    continuous (``dt = 0``), or discrete with sample period ``dt`` [s] and the discrete
+    ``integrator`` (module docstring); :func:`~drivetrain_ctrl.design.controllers.pid_controller`
+    with ``kd = 0``. ``kp`` [plant input per error unit], ``ki`` [same per s]."""
+    return pid_controller(kp, ki, dt=dt, integrator=integrator)
 
 
 def _gains(c: C128, F: C128) -> tuple[F64, F64]:
@@ -124,7 +102,7 @@ def _target(P: C128, pm_deg: Any) -> C128:
 
 
 def pi_gains_at(
-    plant: object, wc: float, phase_margin: float, *, method: str | None = None
+    plant: object, wc: float, phase_margin: float, *, integrator: str | None = None
 ) -> tuple[float, float]:
     """``(kp, ki)`` of the PI whose loop crosses over at ``wc`` [rad/s] with ``phase_margin``
     [deg] (the closed form of the module docstring, no feasibility check: a negative gain says
@@ -132,7 +110,7 @@ def pi_gains_at(
     p = _single_plant(plant)
     wc = real_number("wc", wc, lo=0.0, lo_open=True, unit="rad/s")
     w = np.array([wc])
-    F = _integrator_response(w, p.dt, _method(p, method))
+    F = integrator_response(w, p.dt, _integrator(p, integrator))
     kp, ki = _gains(_target(p.freqresp(w), phase_margin), F)
     return float(kp[0]), float(ki[0])
 
@@ -142,7 +120,7 @@ class PIDesign:
     """A PI designed from specifications (:func:`design_pi`) and what it achieves.
 
     Gains: ``kp`` [plant input per error unit], ``ki`` [the same per s]; ``dt`` [s] (0.0:
-    continuous) and ``method`` (``"continuous"`` or the discrete integrator); ``controller`` the
+    continuous) and ``integrator`` (``"continuous"`` or the discrete integrator); ``controller`` the
     python-control ``TransferFunction`` ``kp + ki F``. Specification: ``rule`` (how the crossover
     was chosen: ``"given crossover"``, ``"max ki at phase margin"``, ``"max ki under Ms"``),
     ``wc_target`` [rad/s], ``pm_target`` [deg], ``ms_target`` [-] (None where not given).
@@ -156,7 +134,7 @@ class PIDesign:
     kp: float
     ki: float
     dt: float
-    method: str
+    integrator: str
     controller: Any
     plant: Plant
     rule: str
@@ -230,7 +208,7 @@ class PIDesign:
         ):
             if v is not None:
                 prov[key] = float(v)
-        if self.method in ("continuous", "forward"):
+        if self.integrator in ("continuous", "forward"):
             return ControllerSpec(
                 name=name,
                 law="pi",
@@ -257,8 +235,8 @@ class PIDesign:
         def f(v: float | None, unit: str = "") -> str:
             return "none" if v is None else f"{v:.4g}{unit}"
 
-        kind = "continuous" if self.dt == 0 else f"{self.method} Euler, Ts = {self.dt:g} s"
-        if self.method == "tustin":
+        kind = "continuous" if self.dt == 0 else f"{self.integrator} Euler, Ts = {self.dt:g} s"
+        if self.integrator == "tustin":
             kind = f"Tustin, Ts = {self.dt:g} s"
         head = (
             f"PI ({kind}) for {self.plant.name or 'the plant'}: kp = {self.kp:.4g}, "
@@ -282,60 +260,21 @@ def _single_plant(plant: object) -> Plant:
     return ps[0]
 
 
-def _method(p: Plant, method: str | None) -> str:
+def _integrator(p: Plant, integrator: str | None) -> str:
     if p.dt == 0.0:
-        if method not in (None, "continuous"):
+        if integrator not in (None, "continuous"):
             raise ValueError(
-                f"method = {method!r}: the plant is continuous, so is the PI; a discrete "
+                f"integrator = {integrator!r}: the plant is continuous, so is the PI; a discrete "
                 "integrator needs a discrete plant (e.g. control.c2d(P, Ts, 'zoh'))"
             )
         return "continuous"
-    if method is None:
+    if integrator is None:
         return "forward"
-    if method not in METHODS:
-        raise ValueError(f"method = {method!r}: must be one of {METHODS} for a discrete plant")
-    return method
-
-
-# ---------------------------------------------------------------------------------------------
-# the independent check
-# ---------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Check:
-    crossover: float | None
-    phase_margin: float | None
-    gain_margin_db: float | None
-    ms: float
-    mt: float
-    stable: bool
-    margins: LoopMargins
+    return check_integrator(integrator)
 
 
 def _dense_grid(p: Plant, wc: float | None) -> F64:
     return frequency_grid(p, n=3000, crossover=wc)
-
-
-def _check(p: Plant, C: Any, w: F64, pade_order: int) -> _Check:
-    """Achieved figures of ``C`` on ``p``, independent of the closed form (module docstring)."""
-    Cw = np.asarray(C(np.exp(1j * w * p.dt) if p.dt else 1j * w), dtype=complex).reshape(-1)
-    Lw = Cw * p.freqresp(w)
-    ok = np.isfinite(Lw)
-    S = 1.0 / (1.0 + Lw[ok])
-    ms = float(np.max(np.abs(S)))
-    mt = float(np.max(np.abs(Lw[ok] * S)))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        gm, pm, _sm, _wpc, wgc, _wms = control.stability_margins(control.frd(Lw[ok], w[ok]))
-    pm_v = float(pm) if np.isfinite(pm) and np.isfinite(wgc) and wgc > 0 else None
-    wgc_v = float(wgc) if pm_v is not None else None
-    gm_db = 20 * math.log10(float(gm)) if np.isfinite(gm) and gm > 0 else None
-    L_rat = C * p.with_pade(pade_order)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        mg = loop_margins(L_rat)
-    return _Check(wgc_v, pm_v, gm_db, ms, mt, bool(mg.stable), mg)
 
 
 def _delay_model(p: Plant, pade_order: int) -> str:
@@ -456,9 +395,10 @@ def design_pi(
     wc: float | None = None,
     phase_margin: float | None = None,
     ms: float | None = None,
-    method: str | None = None,
+    integrator: str | None = None,
     grid: Any = None,
     pade_order: int = 5,
+    method: str | None = None,
 ) -> PIDesign:
     """A PI for ``plant`` from specifications (rules, conventions and checks: module docstring).
 
@@ -466,15 +406,21 @@ def design_pi(
     :class:`~drivetrain_ctrl.design.plants.Plant` with an exact input delay, or a one-plant set);
     negative feedback ``L = C P``. ``wc`` [rad/s]: the crossover (None: chosen by the rule of the
     module docstring). ``phase_margin`` [deg] in (0, 180): default 60 unless ``ms`` is given.
-    ``ms`` [-] > 1: bound on ``max |1/(1 + L)|``. ``method``: discrete integrator for a discrete
-    plant (``"forward"``, ``"backward"``, ``"tustin"``; default ``"forward"``). ``grid``: the
+    ``ms`` [-] > 1: bound on ``max |1/(1 + L)|``. ``integrator``: discrete integrator for a
+    discrete plant (``"forward"``, ``"backward"``, ``"tustin"``; default ``"forward"``; the
+    former name ``method`` is an error naming it). ``grid``: the
     frequencies [rad/s] scanned for ``wc`` and used for ``ms`` (default
     :func:`~drivetrain_ctrl.design.plants.frequency_grid` of the plant, 400 points).
     ``pade_order``: order of the Pade approximation of a continuous delay in the stability
     check. Returns a :class:`PIDesign`.
     """
+    if method is not None:
+        raise ValueError(
+            f"design_pi: method = {method!r}: the discrete integrator's option is now called "
+            f"integrator (integrator={method!r})"
+        )
     p = _single_plant(plant)
-    meth = _method(p, method)
+    meth = _integrator(p, integrator)
     if wc is not None:
         wc = real_number("wc", wc, lo=0.0, lo_open=True, unit="rad/s")
         if p.dt and wc >= math.pi / p.dt:
@@ -502,15 +448,20 @@ def design_pi(
     pm = phase_margin if (phase_margin is not None or ms is not None) else DEFAULT_PHASE_MARGIN
 
     def F_of(x: F64) -> C128:
-        return _integrator_response(np.asarray(x, dtype=float), p.dt, meth)
+        return integrator_response(np.asarray(x, dtype=float), p.dt, meth)
 
     if wc is not None and pm is not None:
         kp, ki, feasible, msg, rule = _at_crossover(p, F_of, wc, pm, w)
         wc_found = wc
     else:
         kp, ki, feasible, msg, rule, wc_found = _scan(p, F_of, w, wc, pm, ms, meth, pade_order)
-    C = pi_controller_tf(kp, ki, dt=p.dt, method=meth if p.dt else "forward")
-    chk = _check(p, C, _dense_grid(p, wc_found if wc_found > 0 else None), pade_order)
+    C = pi_controller_tf(kp, ki, dt=p.dt, integrator=meth if p.dt else "forward")
+    chk = check_loop(
+        p, C, grid=_dense_grid(p, wc_found if wc_found > 0 else None), pade_order=pade_order
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        margins = loop_margins(C * p.with_pade(pade_order))
     notes = [msg] if msg else []
     if not chk.stable:
         feasible = False
@@ -518,11 +469,11 @@ def design_pi(
     if (
         feasible
         and pm is not None
-        and (chk.phase_margin is None or chk.phase_margin < pm - _PM_TOL_DEG)
+        and (chk.phase_margin_deg is None or chk.phase_margin_deg < pm - _PM_TOL_DEG)
     ):
         feasible = False
-        got = "no crossover" if chk.phase_margin is None else f"{chk.phase_margin:.3g} deg"
-        where = "" if chk.crossover is None else f" at {chk.crossover:.4g} rad/s"
+        got = "no crossover" if chk.phase_margin_deg is None else f"{chk.phase_margin_deg:.3g} deg"
+        where = "" if chk.crossover_rad_s is None else f" at {chk.crossover_rad_s:.4g} rad/s"
         notes.append(
             f"the loop's smallest phase margin is {got}{where} (another gain crossover), "
             f"below the {pm:g} deg asked for"
@@ -539,20 +490,20 @@ def design_pi(
         kp=float(kp),
         ki=float(ki),
         dt=p.dt,
-        method=meth,
+        integrator=meth,
         controller=C,
         plant=p,
         rule=rule,
         wc_target=wc,
         pm_target=pm,
         ms_target=ms,
-        crossover=chk.crossover,
-        phase_margin=chk.phase_margin,
+        crossover=chk.crossover_rad_s,
+        phase_margin=chk.phase_margin_deg,
         gain_margin_db=chk.gain_margin_db,
         ms=chk.ms,
         mt=chk.mt,
-        stable=chk.stable,
-        margins=chk.margins,
+        stable=bool(chk.stable),
+        margins=margins,
         delay_model=_delay_model(p, pade_order),
         feasible=feasible,
         message="; ".join(notes),
@@ -638,11 +589,13 @@ def _scan(
         return ok
 
     def verified(kp: float, ki: float) -> bool:
-        C = pi_controller_tf(kp, ki, dt=p.dt, method=meth if p.dt else "forward")
-        chk = _check(p, C, _dense_grid(p, None), pade_order)
+        C = pi_controller_tf(kp, ki, dt=p.dt, integrator=meth if p.dt else "forward")
+        chk = check_loop(p, C, grid=_dense_grid(p, None), pade_order=pade_order)
         if not chk.stable:
             return False
-        if pm is not None and (chk.phase_margin is None or chk.phase_margin < pm - _PM_TOL_DEG):
+        if pm is not None and (
+            chk.phase_margin_deg is None or chk.phase_margin_deg < pm - _PM_TOL_DEG
+        ):
             return False
         return not (ms is not None and chk.ms > ms * (1 + 1e-3))
 

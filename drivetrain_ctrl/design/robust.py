@@ -41,12 +41,13 @@ Sampled plants (``dt > 0``, one ``dt`` for the set) get a discrete controller: i
 ``kd (z - 1)/((tf + dt) z - tf)``; continuous: ``kp + ki/s + kd s/(tf s + 1)``. Units: ``kp``
 [u/y], ``ki`` [u/(y s)], ``kd`` [u s/y], ``tf`` [s], frequencies [rad/s].
 
-The result (:class:`RobustTuning`) re-checks every plant on a dense grid with python-control,
-independently of the optimisation: ``Ms``, ``Mt``, ``max |KS|``, classical gain and phase margins
-(``control.stability_margins`` of the exact frequency response), the symmetric disk margin
-(``alpha = 1/max|S - 1/2|``, python-control's ``disk_margins`` formulas) and closed-loop
-stability; it says which plants and frequencies are active (limit the design) and keeps the
-iteration history.
+The result (:class:`RobustTuning`) re-checks every plant on a dense grid, independently of the
+optimisation, with the design tools' loop check (:func:`~drivetrain_ctrl.design.checks.check_loop`:
+``Ms``, ``Mt``, ``max |KS|``, classical gain and phase margins, the symmetric disk margin and
+closed-loop stability); it says which plants and frequencies are active (limit the design) and
+keeps the iteration history. The controller structure
+(:func:`~drivetrain_ctrl.design.controllers.pid_controller`, the discrete integrators) is
+:mod:`~drivetrain_ctrl.design.controllers`, shared with :func:`~drivetrain_ctrl.design.pi.design_pi`.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ import dataclasses
 import math
 import time
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -67,24 +68,24 @@ from numpy.typing import NDArray
 
 from ..core.serialize import json_ready
 from ..core.validate import did_you_mean, real_number
-from .plants import Plant, PlantSet, as_plant_set, frequency_grid
+from .checks import LoopCheck, check_grid, check_plant_set, closed_loop_stable, worst_figures
+from .controllers import INTEGRATORS, pid_basis
+from .options import frequency_vector, spec_with_options
+from .plants import PlantSet, as_plant_set, frequency_grid
 
 __all__ = [
     "RobustSpec",
-    "RobustPlantCheck",
     "RobustTuning",
     "InfeasibleSpecError",
     "UnboundedSpecError",
     "robust_pi",
     "robust_pid",
-    "pid_controller",
 ]
 
 F64 = NDArray[np.float64]
 C128 = NDArray[np.complex128]
 
 STRUCTURES = ("pi", "pid")
-INTEGRATORS = ("forward", "backward", "tustin")
 SOLVERS = ("CLARABEL", "SCS", "HIGHS", "OSQP", "ECOS")
 #: factor on the sag measured on the sub-samples of a cell (the sub-sampled maximum can miss the
 #: true one by a little)
@@ -93,11 +94,6 @@ SAG_SAFETY = 1.5
 ACTIVE_TOL = 2e-3
 #: relative tolerance of the feasibility check of an iterate (solver accuracy)
 FEAS_TOL = 1e-7
-#: ``|L|`` range [GM_FLOOR, 1/GM_FLOOR] in which crossovers are searched (gain margins within 60 dB)
-GM_FLOOR = 1e-3
-#: at most this many points of the check grid go into python-control's margin search (its cost
-#: grows with the points; it interpolates between them)
-MARGIN_POINTS = 300
 
 
 class UnboundedSpecError(ValueError):
@@ -168,18 +164,7 @@ class RobustSpec:
                 + did_you_mean(str(self.integrator), INTEGRATORS)
             )
         if self.omega is not None:
-            try:
-                w = np.asarray(self.omega, dtype=float)
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"omega = {self.omega!r}: a 1-D grid [rad/s] is needed") from exc
-            if w.ndim != 1 or w.size < 3:
-                raise ValueError(f"omega = {self.omega!r}: a 1-D grid of >= 3 frequencies [rad/s]")
-            if not (np.all(np.isfinite(w)) and np.all(w > 0) and np.all(np.diff(w) > 0)):
-                raise ValueError(
-                    f"omega = {self.omega!r}: frequencies must be finite, > 0 and strictly "
-                    "increasing [rad/s]"
-                )
-            s(self, "omega", tuple(float(v) for v in w))
+            s(self, "omega", frequency_vector("omega", self.omega, 3))
         for name, lo in (
             ("n_omega", 3),
             ("subsamples", 1),
@@ -224,90 +209,9 @@ class RobustSpec:
         return json_ready(dataclasses.asdict(self))
 
 
-def _spec_from(where: str, spec: RobustSpec | None, options: Mapping[str, Any]) -> RobustSpec:
-    """``spec`` (default: :class:`RobustSpec`) with ``options`` replaced; an unknown option is a
-    ValueError naming the key and the value."""
-    if spec is not None and not isinstance(spec, RobustSpec):
-        raise TypeError(f"{where}: spec = {spec!r}: must be a RobustSpec or None")
-    names = [f.name for f in dataclasses.fields(RobustSpec)]
-    for k, v in options.items():
-        if k not in names:
-            hint = did_you_mean(k, names) or f"; options: {names}"
-            raise ValueError(f"{where}: unknown option {k} = {v!r}{hint}")
-    return dataclasses.replace(spec or RobustSpec(), **options)
-
-
 # ---------------------------------------------------------------------------------------------
 # controller structure
 # ---------------------------------------------------------------------------------------------
-
-
-def _basis(structure: str, dt: float, tf: float, integrator: str) -> tuple[list[F64], F64]:
-    """Numerators (one per gain kp, ki[, kd]) over one common denominator, so that
-    ``C = sum_i theta_i n_i / d``; continuous in ``s``, discrete in ``z``."""
-    pid = structure == "pid"
-    if dt == 0.0:
-        d = np.array([1.0, 0.0])  # s
-        nums = [np.array([1.0, 0.0]), np.array([0.0, 1.0])]  # kp, ki / s
-        if pid:
-            f = np.array([tf, 1.0])
-            d = np.polymul(d, f)
-            nums = [np.polymul(n, f) for n in nums]
-            nums.append(np.array([1.0, 0.0, 0.0]))  # kd s^2 / (s (tf s + 1))
-        return _padded(nums, d), d
-    d = np.array([1.0, -1.0])  # z - 1
-    i_num = {
-        "forward": np.array([0.0, dt]),
-        "backward": np.array([dt, 0.0]),
-        "tustin": np.array([dt / 2, dt / 2]),
-    }[integrator]
-    nums = [np.array([1.0, -1.0]), i_num]
-    if pid:
-        f = np.array([tf + dt, -tf])
-        d = np.polymul(d, f)
-        nums = [np.polymul(n, f) for n in nums]
-        nums.append(np.polymul([1.0, -1.0], [1.0, -1.0]))  # kd (z-1)^2 / ((z-1) f)
-    return _padded(nums, d), d
-
-
-def _padded(nums: list[Any], d: F64) -> list[F64]:
-    """Numerators as float arrays of the denominator's length (leading zeros)."""
-    out = []
-    for n in nums:
-        n = np.asarray(n, dtype=float)
-        out.append(np.concatenate([np.zeros(d.size - n.size), n]))
-    return out
-
-
-def pid_controller(
-    kp: float,
-    ki: float,
-    kd: float = 0.0,
-    *,
-    tf: float = 0.0,
-    dt: float = 0.0,
-    integrator: str = "forward",
-) -> control.TransferFunction:
-    """The PI/PID controller of this module as a python-control transfer function.
-
-    Continuous (``dt = 0``): ``kp + ki/s + kd s/(tf s + 1)``; sampled (``dt`` [s] > 0): ``kp +
-    ki I(z) + kd (z - 1)/((tf + dt) z - tf)`` with ``I(z)`` the ``integrator`` formula (module
-    docstring). ``kd = 0`` gives a PI (first order). Units: kp [u/y], ki [u/(y s)], kd [u s/y],
-    tf [s]."""
-    kp = real_number("kp", kp)
-    ki = real_number("ki", ki)
-    kd = real_number("kd", kd)
-    dt = real_number("dt", dt, lo=0.0, unit="s")
-    tf = real_number("tf", tf, lo=0.0, unit="s")
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"integrator = {integrator!r}: must be one of {INTEGRATORS}")
-    structure = "pid" if kd != 0.0 else "pi"
-    if structure == "pid" and dt == 0.0 and tf <= 0.0:
-        raise ValueError(f"tf = {tf!r}: a continuous PID needs a derivative filter tf > 0 [s]")
-    nums, d = _basis(structure, dt, tf, integrator)
-    gains = (kp, ki, kd)[: len(nums)]
-    num = sum(g * n for g, n in zip(gains, nums, strict=True))
-    return control.tf(np.trim_zeros(np.asarray(num), "f") if np.any(num) else [0.0], d, dt)
 
 
 def _eval_poly_ratio(nums: list[F64], d: F64, x: C128) -> C128:
@@ -326,53 +230,13 @@ def _eval_poly_ratio(nums: list[F64], d: F64, x: C128) -> C128:
 
 
 @dataclass(frozen=True)
-class RobustPlantCheck:
-    """One plant's loop with the designed controller, re-checked on a dense grid (python-control,
-    exact delay), independently of the optimisation.
-
-    ``ms``, ``mt``: peak ``|S|``, ``|T|`` and where [rad/s]; ``ks``: peak ``|K S|`` [u/y];
-    ``gain_margin_db`` (None: no phase crossover), ``phase_margin_deg`` (None: no gain
-    crossover), ``crossover_rad_s``; ``disk_margin`` (alpha, skew 0), ``disk_margin_db``,
-    ``disk_margin_deg``; ``stable``: closed-loop poles (a delay by its Pade approximation; None if
-    they cannot be formed, see ``reasons``); ``active``: the design's binding constraints on this
-    plant, ``(bound, frequency [rad/s], relative slack)`` (empty: the plant does not limit).
-    """
-
-    name: str
-    ms: float
-    ms_frequency_rad_s: float
-    mt: float
-    mt_frequency_rad_s: float
-    ks: float
-    gain_margin_db: float | None
-    phase_margin_deg: float | None
-    crossover_rad_s: float | None
-    disk_margin: float
-    disk_margin_db: float
-    disk_margin_deg: float
-    stable: bool | None
-    active: tuple[tuple[str, float, float], ...] = ()
-    reasons: tuple[tuple[str, str], ...] = ()
-
-    @property
-    def limiting(self) -> bool:
-        """True if a bound is active on this plant."""
-        return bool(self.active)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        d["active"] = [{"bound": b, "frequency_rad_s": w, "slack": s} for b, w, s in self.active]
-        d["reasons"] = dict(self.reasons)
-        return json_ready(d)
-
-
-@dataclass(frozen=True)
 class RobustTuning:
     """A robust PI/PID for a plant set (:func:`robust_pi`, :func:`robust_pid`).
 
     ``kp`` [u/y], ``ki`` [u/(y s)], ``kd`` [u s/y], ``tf`` [s] (0 for a PI), ``dt`` [s] (0:
-    continuous), ``controller`` (python-control transfer function, :func:`pid_controller`);
-    ``spec``; ``plants``: one :class:`RobustPlantCheck` per plant; ``history``: the gains
+    continuous), ``controller`` (python-control transfer function,
+    :func:`~drivetrain_ctrl.design.controllers.pid_controller`);
+    ``spec``; ``plants``: one :class:`~drivetrain_ctrl.design.checks.LoopCheck` per plant; ``history``: the gains
     ``(kp, ki[, kd])`` of the start and of each accepted iterate (``ki`` non-decreasing);
     ``converged`` and ``message``; ``omega`` the final design grid [rad/s] (refined around the
     active cells); ``start_source`` (``"auto"``, ``"given"``, ``"robust PI"``); ``timings`` [s]
@@ -388,7 +252,7 @@ class RobustTuning:
     dt: float
     controller: control.TransferFunction
     spec: RobustSpec
-    plants: tuple[RobustPlantCheck, ...]
+    plants: tuple[LoopCheck, ...]
     history: tuple[tuple[float, ...], ...]
     converged: bool
     message: str
@@ -421,25 +285,23 @@ class RobustTuning:
     @property
     def ms(self) -> float:
         """Largest re-checked ``|S|`` over the set."""
-        return max(p.ms for p in self.plants)
+        return float(worst_figures(self.plants)["ms_max"])
 
     @property
     def mt(self) -> float:
         """Largest re-checked ``|T|`` over the set."""
-        return max(p.mt for p in self.plants)
+        return float(worst_figures(self.plants)["mt_max"])
 
     @property
     def ks(self) -> float:
         """Largest re-checked ``|K S|`` over the set [u/y]."""
-        return max(p.ks for p in self.plants)
+        return float(worst_figures(self.plants)["ks_max"])
 
     @property
     def stable(self) -> bool | None:
         """True if every closed loop is stable (None if one could not be checked)."""
-        flags = [p.stable for p in self.plants]
-        if any(f is False for f in flags):
-            return False
-        return None if any(f is None for f in flags) else True
+        flag: bool | None = worst_figures(self.plants)["all_stable"]
+        return flag
 
     def table(self) -> list[dict[str, Any]]:
         """One row per plant: name, Ms, Mt, ``|KS|``, GM [dB], PM [deg], disk margin [dB, deg],
@@ -474,14 +336,13 @@ class RobustTuning:
             bounds += f", Mt <= {self.spec.mt:g}"
         if self.spec.ks_max is not None:
             bounds += f", |KS| <= {self.spec.ks_max:g}"
-        gms = [p.gain_margin_db for p in self.plants if p.gain_margin_db is not None]
-        pms = [p.phase_margin_deg for p in self.plants if p.phase_margin_deg is not None]
-        fig = f"achieved Ms {self.ms:.3f}, Mt {self.mt:.3f}"
-        if gms:
-            fig += f", GM >= {min(gms):.1f} dB"
-        if pms:
-            fig += f", PM >= {min(pms):.1f} deg"
-        fig += f", disk margin >= {min(p.disk_margin_db for p in self.plants):.1f} dB"
+        w = worst_figures(self.plants)
+        fig = f"achieved Ms {w['ms_max']:.3f}, Mt {w['mt_max']:.3f}"
+        if w["gain_margin_db_min"] is not None:
+            fig += f", GM >= {w['gain_margin_db_min']:.1f} dB"
+        if w["phase_margin_deg_min"] is not None:
+            fig += f", PM >= {w['phase_margin_deg_min']:.1f} deg"
+        fig += f", disk margin >= {w['disk_margin_db_min']:.1f} dB"
         lim = ", ".join(self.limiting) or "none"
         stab = {True: "all loops stable", False: "UNSTABLE loop(s)", None: "stability unchecked"}
         return (
@@ -820,24 +681,6 @@ class _LP:
 # ---------------------------------------------------------------------------------------------
 
 
-def _closed_loop_stable(
-    plant: Plant, C: control.TransferFunction, order: int
-) -> tuple[bool | None, str]:
-    """Closed-loop stability of ``C`` on ``plant`` from the poles (delay: Pade / ``z^-k``)."""
-    try:
-        Pr = plant.with_pade(order)
-    except ValueError as exc:
-        return None, str(exc)
-    if isinstance(Pr, control.TransferFunction):
-        cl = control.feedback(C * Pr, 1)
-    else:
-        cl = control.feedback(control.ss(C) * Pr, 1)
-    poles = np.asarray(cl.poles(), dtype=complex)
-    if plant.is_discrete:
-        return bool(np.all(np.abs(poles) < 1.0)), ""
-    return bool(np.all(poles.real < 0.0)), ""
-
-
 def _describe_violation(
     pset: PlantSet, g: _Grid, disks: _Disks, sl: dict[str, tuple[F64, F64]]
 ) -> str:
@@ -864,7 +707,7 @@ def _find_start(
             )
         C = _controller_of(th, g)
         for p in pset:
-            st, why = _closed_loop_stable(p, C, spec.pade_order)
+            st, why = closed_loop_stable(p, C, spec.pade_order)
             if st is False:
                 raise InfeasibleSpecError(
                     f"start = {spec.start!r} does not stabilise plant {p.name!r}"
@@ -899,7 +742,7 @@ def _find_start(
         C = _controller_of(th, g)
         bad = None
         for p in pset:
-            st, _why = _closed_loop_stable(p, C, spec.pade_order)
+            st, _why = closed_loop_stable(p, C, spec.pade_order)
             if st is False:
                 bad = p.name
                 break
@@ -950,95 +793,6 @@ def _controller_of(theta: F64, g: _Grid) -> control.TransferFunction:
     num = sum(t * n for t, n in zip(theta, g.nums, strict=True))
     num = np.asarray(num, dtype=float)
     return control.tf(num if np.any(num) else [0.0], g.den, g.dt)
-
-
-def _disk_figures(alpha: float) -> tuple[float, float]:
-    """Disk-based gain [dB] and phase [deg] margins of a symmetric (skew 0) disk margin alpha,
-    by python-control's ``disk_margins`` formulas."""
-    gmin = (1 - 0.5 * alpha) / (1 + 0.5 * alpha)
-    with np.errstate(divide="ignore"):
-        gmax = (1 + 0.5 * alpha) / (1 - 0.5 * alpha) if alpha < 2 else math.inf
-    dgm = 20 * math.log10(min(1 / gmin, gmax)) if gmin > 0 else math.inf
-    if math.isinf(gmax):
-        return dgm, 90.0
-    c = (1 + gmin * gmax) / (gmin + gmax)
-    return dgm, (math.inf if abs(c) >= 1 else math.degrees(math.acos(c)))
-
-
-def _check_plant(
-    p: Plant,
-    C: control.TransferFunction,
-    w: F64,
-    pade_order: int,
-) -> RobustPlantCheck:
-    """The dense re-check of one loop (python-control responses, exact delay)."""
-    x = np.exp(1j * w * p.dt) if p.is_discrete else 1j * w
-    Cw = np.asarray(C(x, warn_infinite=False), dtype=complex).reshape(-1)
-    L = p.freqresp(w) * Cw
-    S = 1.0 / (1.0 + L)
-    T = L * S
-    KS = Cw * S
-    iS, iT = int(np.argmax(np.abs(S))), int(np.argmax(np.abs(T)))
-    reasons: list[tuple[str, str]] = []
-    # classical margins by python-control on the exact response where GM_FLOOR <= |L| <=
-    # 1/GM_FLOOR (a phase crossover outside, a gain margin beyond +-60 dB, is not searched: with a
-    # delay there are thousands at high frequency, and python-control's search on a frequency
-    # response costs time per point)
-    big = np.flatnonzero((np.abs(L) >= GM_FLOOR) & (np.abs(L) <= 1.0 / GM_FLOOR))
-    gm = pm = wgc = math.inf
-    if big.size:
-        lo, hi = max(int(big[0]) - 1, 0), min(int(big[-1]) + 2, w.size)
-        step = max(1, math.ceil((hi - lo) / MARGIN_POINTS))
-        idx = np.unique(np.r_[np.arange(lo, hi, step), hi - 1])
-        if idx.size >= 2:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                gm, pm, _sm, _wpc, wgc, _wms = control.stability_margins(
-                    control.frd(L[idx], w[idx])
-                )
-    gm_db = pm_v = wgc_v = None
-    if np.isfinite(gm) and gm > 0:
-        gm_db = 20 * math.log10(float(gm))
-    else:
-        reasons.append(
-            (
-                "gain_margin_db",
-                f"no phase crossover with {GM_FLOOR:g} <= |L| <= {1 / GM_FLOOR:g} on the check grid",
-            )
-        )
-    if np.isfinite(pm) and np.isfinite(wgc) and wgc > 0:
-        pm_v, wgc_v = float(pm), float(wgc)
-    else:
-        reasons.append(("phase_margin_deg", "no gain crossover on the check grid"))
-    alpha = 1.0 / float(np.max(np.abs(S - 0.5)))
-    dgm, dpm = _disk_figures(alpha)
-    stable, why = _closed_loop_stable(p, C, pade_order)
-    if stable is None:
-        reasons.append(("stable", why))
-    return RobustPlantCheck(
-        name=p.name,
-        ms=float(np.abs(S[iS])),
-        ms_frequency_rad_s=float(w[iS]),
-        mt=float(np.abs(T[iT])),
-        mt_frequency_rad_s=float(w[iT]),
-        ks=float(np.max(np.abs(KS))),
-        gain_margin_db=gm_db,
-        phase_margin_deg=pm_v,
-        crossover_rad_s=wgc_v,
-        disk_margin=alpha,
-        disk_margin_db=dgm,
-        disk_margin_deg=dpm,
-        stable=stable,
-        reasons=tuple(reasons),
-    )
-
-
-def _check_grid(w: F64, dt: float, n: int) -> F64:
-    """The dense re-check grid: a decade beyond the design grid each side (up to Nyquist for a
-    sampled set), ``n`` log-spaced points, the design grid included."""
-    lo = w[0] / 10.0
-    hi = math.pi / dt if dt else w[-1] * 10.0
-    return np.unique(np.concatenate([np.logspace(math.log10(lo), math.log10(hi), n), w]))
 
 
 def _active(
@@ -1204,7 +958,7 @@ def _tune(plants: Any, structure: str, spec: RobustSpec) -> RobustTuning:
                 tf = max(tf, dt)
         else:
             tf = float(spec.tf)
-    nums, den = _basis(structure, dt, tf, spec.integrator)
+    nums, den = pid_basis(structure, dt, tf, spec.integrator)
     n_i = len(nums)
     from_pi = pi_result is not None and spec.start is None
     if from_pi:
@@ -1248,12 +1002,9 @@ def _tune(plants: Any, structure: str, spec: RobustSpec) -> RobustTuning:
     timings["solver"] = solve_time
     t0 = time.perf_counter()
     C = _controller_of(theta, g)
-    w_check = _check_grid(g.w, dt, spec.check_points)
+    w_check = check_grid(g.w, dt, spec.check_points)
     actives = _active(pset, g, disks, theta)
-    checks = tuple(
-        dataclasses.replace(_check_plant(p, C, w_check, spec.pade_order), active=act)
-        for p, act in zip(pset, actives, strict=True)
-    )
+    checks = check_plant_set(pset, C, grid=w_check, pade_order=spec.pade_order, active=actives)
     timings["check"] = time.perf_counter() - t0
     return RobustTuning(
         structure=structure,
@@ -1284,7 +1035,7 @@ def robust_pi(plants: Any, *, spec: RobustSpec | None = None, **options: Any) ->
     of :class:`RobustSpec` (``spec`` as a base, keywords override; an unknown keyword is a
     ValueError naming it and its value). Raises :class:`InfeasibleSpecError` when no start is
     found. See the module docstring for the method."""
-    return _tune(plants, "pi", _spec_from("robust_pi", spec, options))
+    return _tune(plants, "pi", spec_with_options(RobustSpec, "robust_pi", spec, options))
 
 
 def robust_pid(plants: Any, *, spec: RobustSpec | None = None, **options: Any) -> RobustTuning:
@@ -1292,4 +1043,4 @@ def robust_pid(plants: Any, *, spec: RobustSpec | None = None, **options: Any) -
     integral gain under the same bounds as :func:`robust_pi`, ``tf`` fixed (``spec.tf`` or the
     rule in :class:`RobustSpec`). Starts from the robust PI (``kd = 0``), so its ``ki`` is at
     least the PI's."""
-    return _tune(plants, "pid", _spec_from("robust_pid", spec, options))
+    return _tune(plants, "pid", spec_with_options(RobustSpec, "robust_pid", spec, options))

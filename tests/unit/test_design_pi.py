@@ -109,24 +109,24 @@ def test_delay_plant_exact():
     assert "Pade" in d.delay_model and d.stable
 
 
-@pytest.mark.parametrize("method", ["forward", "backward", "tustin"])
-def test_discrete_plant_with_sample_delay(method):
+@pytest.mark.parametrize("integrator", ["forward", "backward", "tustin"])
+def test_discrete_plant_with_sample_delay(integrator):
     """ZOH samples of 1/(s+1) at Ts = 0.05 s with one sample of delay; F of each integrator."""
     Ts, wc, pm = 0.05, 5.0, 60.0
     a = math.exp(-Ts)
     Pd = control.tf([1 - a], [1, -a], Ts)
-    d = design_pi(Plant(Pd, delay=Ts), wc=wc, phase_margin=pm, method=method)
+    d = design_pi(Plant(Pd, delay=Ts), wc=wc, phase_margin=pm, integrator=integrator)
     z = np.exp(1j * wc * Ts)
     F = {
         "forward": Ts / (z - 1),
         "backward": Ts * z / (z - 1),
         "tustin": Ts / 2 * (z + 1) / (z - 1),
     }
-    kp, ki = _hand_pi((1 - a) / (z - a) / z, F[method], pm)
+    kp, ki = _hand_pi((1 - a) / (z - a) / z, F[integrator], pm)
     assert d.kp == pytest.approx(kp, rel=1e-9) and d.ki == pytest.approx(ki, rel=1e-9)
-    assert d.controller.dt == Ts and d.method == method
+    assert d.controller.dt == Ts and d.integrator == integrator
     C = d.controller
-    assert complex(C(z)) == pytest.approx(kp + ki * F[method], rel=1e-9)
+    assert complex(C(z)) == pytest.approx(kp + ki * F[integrator], rel=1e-9)
     pm_pc, wgc = _margins(C * Pd * control.tf([1], [1, 0], Ts))  # rational, exact z^-1
     assert pm_pc == pytest.approx(pm, abs=1e-6) and wgc == pytest.approx(wc, rel=1e-6)
     assert d.stable and d.feasible and "z^-1" in d.delay_model
@@ -137,7 +137,7 @@ def test_forward_euler_matches_shipped_controller():
     from drivetrain_ctrl.control.laws import ControllerSpec
 
     spec = ControllerSpec(name="t", law="pi", kp=1e-3, ki=5e-3, sample_period_s=0.01)
-    mine = pi_controller_tf(1e-3, 5e-3, dt=0.01, method="forward")
+    mine = pi_controller_tf(1e-3, 5e-3, dt=0.01, integrator="forward")
     z = np.exp(1j * np.array([0.3, 3.0, 30.0]) * 0.01)
     assert np.allclose(control.tf(spec.lti())(z), mine(z), rtol=1e-12)
 
@@ -208,7 +208,7 @@ def test_negative_plant_hint():
         ({"wc": float("inf")}, r"wc = inf"),
         ({"phase_margin": 190.0}, r"phase_margin = 190.0: must be > 0.* and < 180"),
         ({"ms": 0.9}, r"ms = 0.9: must be > 1"),
-        ({"method": "tustin"}, r"method = 'tustin': the plant is continuous"),
+        ({"integrator": "tustin"}, r"integrator = 'tustin': the plant is continuous"),
         ({"grid": [1.0]}, r"grid = \[1.0\]"),
         ({"pade_order": 0}, r"pade_order = 0"),
     ],
@@ -220,8 +220,10 @@ def test_bad_input(kw, match):
 
 def test_bad_input_discrete_and_sets():
     Pd = control.tf([1], [1, -0.5], 0.1)
-    with pytest.raises(ValueError, match=r"method = 'euler': must be one of"):
-        design_pi(Pd, method="euler")
+    with pytest.raises(ValueError, match=r"integrator = 'euler': must be one of"):
+        design_pi(Pd, integrator="euler")
+    with pytest.raises(ValueError, match=r"method = 'tustin'.*now called integrator"):
+        design_pi(Pd, method="tustin")
     with pytest.raises(ValueError, match=r"wc = 40.0 rad/s: must be below the Nyquist"):
         design_pi(Pd, wc=40.0, phase_margin=60)
     with pytest.raises(ValueError, match=r"takes one plant, got a set of 2"):
@@ -252,7 +254,7 @@ def test_stability_screen_agrees_with_python_control(plant, method):
     m = "forward" if method == "continuous" else method
     want = []
     for a, b in zip(kp, ki, strict=True):
-        cl = control.feedback(pi_controller_tf(a, b, dt=plant.dt, method=m) * G, 1)
+        cl = control.feedback(pi_controller_tf(a, b, dt=plant.dt, integrator=m) * G, 1)
         poles = control.poles(cl)
         want.append(bool(np.all(np.abs(poles) < 1) if plant.dt else np.all(poles.real < 0)))
     assert got.tolist() == want
@@ -299,7 +301,7 @@ def test_to_spec_is_the_designed_controller(tmp_path):
     plant = Plant(control.tf([1e4 * (1 - a)], [1, -a], Ts), delay=2 * Ts)
     z = np.exp(1j * np.array([0.5, 5.0, 30.0]) * Ts)
     for method, law in (("forward", "pi"), ("tustin", "lti")):
-        d = design_pi(plant, wc=3.0, phase_margin=60.0, method=method)
+        d = design_pi(plant, wc=3.0, phase_margin=60.0, integrator=method)
         spec = d.to_spec(f"my-{method}")
         assert spec.law == law and spec.delay_samples == 2 and spec.sample_period_s == Ts
         assert spec.design["rule"] == "given crossover"

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
+from drivetrain_ctrl.design.controllers import pid_controller
 from drivetrain_ctrl.design.plants import Plant
 from drivetrain_ctrl.design.robust import (
     InfeasibleSpecError,
     RobustSpec,
     UnboundedSpecError,
-    pid_controller,
     robust_pi,
     robust_pid,
 )
