@@ -127,6 +127,22 @@ def _scan_dissipation(Ks, k, off, t, fs, ist):
         fs[10] = tot
 
 
+@jit_inline
+def _step_end(
+    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, y, y1, Ks, rc, ys, fm, reg, energy, nxs, fs,
+    ist, W,
+):  # fmt: skip
+    """Before an accepted step from ``t`` to ``t1`` is taken: the output-grid times within it
+    (:func:`_record_grid`, with an output grid) and the second-law scan of its end
+    (:func:`_scan_dissipation`, with ``energy``). Returns ``(n_rec, io)``."""
+    if t_out.shape[0] > 0 and io < t_out.shape[0] and t_out[io] <= t1:
+        dense_coeffs(y, y1, Ks, hh, rc)
+        n_rec, io = _record_grid(T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, rc, ys, fm, reg, W)
+    if energy:
+        _scan_dissipation(Ks, 6, nxs + 1, t1, fs, ist)
+    return n_rec, io
+
+
 #: log of the smallest error norm the PI step control remembers (1e-4)
 LOG_ERR_FLOOR = float(np.log(1e-4))
 
@@ -317,15 +333,10 @@ def _advance(
             ist[7] = 1 if hit_stop else 0
             code = ADV_STEP
             break
-        if grid:
-            if io < t_out.shape[0] and t_out[io] <= t1:
-                dense_coeffs(y, y1, Ks, hh, rc)
-                n_rec, io = _record_grid(
-                    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, rc, ys, fm, reg,
-                    (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
-                )  # fmt: skip
-        if energy:
-            _scan_dissipation(Ks, 6, nxs + 1, t1, fs, ist)
+        n_rec, io = _step_end(
+            T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, y, y1, Ks, rc, ys, fm, reg, energy, nxs,
+            fs, ist, (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
+        )  # fmt: skip
         t = t1
         _accept(y, y1, Ks, g0, g1)
         h = h_next
@@ -620,14 +631,10 @@ def simulate_kernel(
         hit_stop = ist[7] != 0
         event = j >= 0
         if not event:
-            if grid and io < t_out.shape[0] and t_out[io] <= t1:
-                dense_coeffs(y, y1, Ks, hh, rc)
-                n_rec, io = _record_grid(
-                    T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, rc, ys, fm, reg,
-                    (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
-                )  # fmt: skip
-            if energy:
-                _scan_dissipation(Ks, 6, nxs + 1, t1, fs, ist)
+            n_rec, io = _step_end(
+                T, Y, U, FM, RG, n_rec, t_out, io, t, hh, t1, y, y1, Ks, rc, ys, fm, reg, energy,
+                nxs, fs, ist, (S, ua, ub, t_ref, nx, Cd, cs, uw, svw),
+            )  # fmt: skip
             t = t1
             _accept(y, y1, Ks, g0, g1)
         else:
