@@ -327,6 +327,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 #: controllers the demo runs the closed-loop scenarios with
 DEMO_CONTROLLERS: tuple[str, ...] = ("paper", "pi")
+#: the built-in scenarios the demo runs (the harder starts of issue 21 are left to the comparison
+#: and to analyses/hard_scenarios.py: they would triple the demo's time)
+DEMO_SCENARIOS: tuple[str, ...] = ("engage-ramp", "tip-in", "paper-start")
 
 #: the rows of the demo's summary table: the figures of merit (:data:`METRICS` of kind
 #: ``"figure"``) and the run's status, size and energy check, under their names in ``metrics.json``
@@ -402,6 +405,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     jobs = [
         (s, k, c)
         for s in builtin_scenarios(params).values()
+        if s.name in DEMO_SCENARIOS
         for k in kinds
         for c in (DEMO_CONTROLLERS if s.needs_controller else (None,))
     ]

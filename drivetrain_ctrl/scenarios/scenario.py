@@ -33,12 +33,23 @@ or of a value of ``inputs.throttle`` is the throttle that holds the free engine 
 set if none is given). ``{throttle0}`` in ``description`` is replaced by the initial throttle (4
 decimals).
 
+A scenario may change the parameter set it runs on: a ``[params]`` table laid out like a parameter
+file (``[params.clutch]``, ``[params.vehicle]``, ...; SI units, keys the fields of
+:mod:`drivetrain_ctrl.plant.params`), each value a number (or a table ``{ x = [...], y = [...] }``
+for a table field) that replaces the set's, or ``{ scale = f }``: the set's value times ``f`` (a
+worn clutch: ``k12_max = { scale = 0.7 }``). The overrides are applied by
+:meth:`Scenario.params_for` (and so by :meth:`Scenario.drivetrain`) to whatever set the scenario
+runs on, and validated like a parameter set when the file is loaded (an unknown field or a bad
+value is a ScenarioError naming ``params.<section>.<field>`` and the value).
+
 A closed-loop scenario has a ``[controller]`` table instead of ``[inputs.pedal]``: the
 engine-speed reference ``reference_rpm`` (a signal table, rpm), the controller's output before it
 starts ``pedal0`` [m] and its start time ``start_s`` [s].
 
 The built-in scenarios (:func:`builtin_scenarios`) are such files, shipped in
-``scenarios/builtin/``: ``engage-ramp``, ``tip-in`` and ``paper-start``.
+``scenarios/builtin/``: ``engage-ramp``, ``tip-in`` and ``paper-start``, and the harder starts
+``hill-start``, ``worn-clutch``, ``judder``, ``heavy-load`` and ``tip-out-reengage`` (each file's
+header says what it tests).
 """
 
 from __future__ import annotations
@@ -64,7 +75,7 @@ from ..core.units import (
     rad_s_to_rpm,
     rpm_to_rad_s,
 )
-from ..core.validate import is_finite_real, real_number, reject_unknown
+from ..core.validate import ParameterError, is_finite_real, real_number, reject_unknown
 from ..plant.drivetrain import INPUTS, Drivetrain
 from ..plant.params import DrivetrainParams, default_params, load_params
 
@@ -94,6 +105,9 @@ class Scenario:
     reference: Signal | None = None
     control_start: float | None = None
     pedal0: float = 0.11
+    #: parameter overrides ``(dotted path, value)``: a number, a table ``{"x": ..., "y": ...}``
+    #: or ``{"scale": f}`` (the base set's value times f); see :meth:`params_for`
+    param_overrides: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -180,6 +194,46 @@ class Scenario:
                 )
         if not (math.isfinite(self.pedal0) and 0.0 <= self.pedal0 <= 0.5):
             raise ScenarioError(f"{self.name}: pedal0 = {self.pedal0!r} [m]: out of range [0, 0.5]")
+        if not isinstance(self.param_overrides, tuple) or not all(
+            isinstance(it, tuple) and len(it) == 2 and isinstance(it[0], str)
+            for it in self.param_overrides
+        ):
+            raise ScenarioError(
+                f"{self.name}: param_overrides = {self.param_overrides!r}: must be a tuple of "
+                "(dotted parameter path, value) pairs"
+            )
+
+    def params_for(self, params: DrivetrainParams) -> DrivetrainParams:
+        """``params`` with this scenario's parameter overrides applied (``params`` itself if it
+        has none), validated like a parameter set: ScenarioError naming ``params.<path>`` and the
+        value otherwise. A ``{"scale": f}`` value multiplies the value of ``params``."""
+        if not self.param_overrides:
+            return params
+        changes: dict[str, Any] = {}
+        for path, value in self.param_overrides:
+            where = f"{self.name}: params.{path}"
+            try:
+                old = params.get(path)
+            except ParameterError as exc:
+                raise ScenarioError(f"{where}: {exc}") from None
+            if isinstance(value, dict) and "scale" in value:
+                f = value["scale"]
+                if set(value) != {"scale"} or not (is_finite_real(f) and f > 0):
+                    raise ScenarioError(
+                        f"{where} = {value!r}: a scale must be {{ scale = <number > 0> }}"
+                    )
+                if isinstance(old, bool) or not is_finite_real(old):
+                    raise ScenarioError(
+                        f"{where} = {value!r}: only a number can be scaled (the set's value is "
+                        f"{old!r})"
+                    )
+                value = float(old) * float(f)
+            changes[path] = value
+        changes["name"] = f"{params.name} + scenario {self.name}"
+        try:
+            return params.with_values(changes)
+        except (ParameterError, TypeError, ValueError) as exc:
+            raise ScenarioError(f"{self.name}: params: {exc}") from None
 
     @property
     def start_time(self) -> float:
@@ -247,8 +301,9 @@ class Scenario:
         return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
 
     def drivetrain(self, params: DrivetrainParams, *, kind: str = "full") -> Drivetrain:
-        """The drivetrain of this scenario (its gear and slope) from ``params``."""
-        return Drivetrain(params, kind=kind, gear=self.gear, slope=self.slope)
+        """The drivetrain of this scenario (its gear and slope) from ``params`` with the
+        scenario's parameter overrides applied (:meth:`params_for`)."""
+        return Drivetrain(self.params_for(params), kind=kind, gear=self.gear, slope=self.slope)
 
     def initial_state(self, dt: Drivetrain) -> NDArray[np.float64]:
         """Initial state of this scenario for drivetrain ``dt``."""
@@ -293,10 +348,47 @@ class Scenario:
                 if self.reference is not None
                 else {}
             ),
+            **({"params": _nest_overrides(self.param_overrides)} if self.param_overrides else {}),
         }
 
 
-_TOP = {"name", "description", "gear", "slope_percent", "t_end", "initial", "inputs", "controller"}
+def _nest_overrides(overrides: tuple[tuple[str, Any], ...]) -> dict[str, Any]:
+    """``{"clutch.k12_max": v}`` pairs -> ``{"clutch": {"k12_max": v}}`` (the TOML layout)."""
+    out: dict[str, Any] = {}
+    for path, value in overrides:
+        section, _, name = path.partition(".")
+        out.setdefault(section, {})[name] = value
+    return out
+
+
+def _param_overrides(d: Any) -> tuple[tuple[str, Any], ...]:
+    """The ``[params]`` table -> ``(dotted path, value)`` pairs (sections and fields in the file's
+    order); its shape checked here, its values by :meth:`Scenario.params_for`."""
+    if not isinstance(d, dict):
+        raise ScenarioError(f"params = {d!r}: must be a table of parameter sections")
+    out = []
+    for section, fields_ in d.items():
+        if not isinstance(fields_, dict):
+            raise ScenarioError(
+                f"params.{section} = {fields_!r}: must be a table (a parameter section, e.g. "
+                "[params.clutch])"
+            )
+        for name, value in fields_.items():
+            out.append((f"{section}.{name}", value))
+    return tuple(out)
+
+
+_TOP = {
+    "name",
+    "description",
+    "gear",
+    "slope_percent",
+    "t_end",
+    "initial",
+    "inputs",
+    "controller",
+    "params",
+}
 _CONTROLLER = {"reference_rpm", "pedal0", "start_s"}
 _INITIAL = {"engine_speed_rpm", "vehicle_speed_kmh", "throttle", "twist_torque", "clutch_locked"}
 
@@ -427,7 +519,7 @@ def scenario_from_dict(d: dict[str, Any], *, params: DrivetrainParams | None = N
             f"slope_percent = {d['slope_percent']!r}: out of range (|slope| < 1410 %, 86 deg)"
         )
     throttle0 = _num("initial.", ini, "throttle")
-    return Scenario(
+    sc = Scenario(
         name=name,
         description=str(d.get("description", "")).replace("{throttle0}", f"{throttle0:.4f}"),
         gear=gear,
@@ -444,7 +536,11 @@ def scenario_from_dict(d: dict[str, Any], *, params: DrivetrainParams | None = N
         reference=reference,
         control_start=start,
         pedal0=pedal0,
+        param_overrides=_param_overrides(d["params"]) if "params" in d else (),
     )
+    if sc.param_overrides:  # validated like a parameter set, on the set the file is loaded for
+        sc.params_for(default_params() if params is None else params)
+    return sc
 
 
 def idle_throttle(params: DrivetrainParams, omega: float) -> float:
@@ -470,7 +566,16 @@ def idle_throttle(params: DrivetrainParams, omega: float) -> float:
 
 #: the order the built-in scenarios are listed (and the demo runs them) in; a file in
 #: ``scenarios/builtin/`` not named here follows, alphabetically
-BUILTIN_ORDER: tuple[str, ...] = ("engage-ramp", "tip-in", "paper-start")
+BUILTIN_ORDER: tuple[str, ...] = (
+    "engage-ramp",
+    "tip-in",
+    "paper-start",
+    "hill-start",
+    "worn-clutch",
+    "judder",
+    "heavy-load",
+    "tip-out-reengage",
+)
 
 #: the package whose ``builtin/`` folder holds the built-in scenario files
 _PACKAGE = __name__.rpartition(".")[0]

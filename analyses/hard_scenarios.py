@@ -1,0 +1,80 @@
+"""Question: how do the built-in controllers do on the harder built-in starts (issue 21 item 1)?
+
+Runs every one of ``hill-start``, ``worn-clutch``, ``judder``, ``heavy-load`` and
+``tip-out-reengage`` (all closed loop: they give the engine-speed reference, not the pedal) under
+law (6) (``paper``) and its PI variant (``pi``) on the reduced and the full model with the default
+parameter set (plus each scenario's own parameter overrides), and prints per run the lock-up time
+and the figure each scenario is about:
+
+- ``hill-start``: ``rollback_m``, the largest backward displacement of the vehicle from its
+  position at t = 0 over the run [m] (computed here from the ``pos_vehicle`` state; not a
+  :data:`~drivetrain_ctrl.sim.metrics.METRICS` entry);
+- ``worn-clutch``: ``clutch_energy_J`` and ``jerk_max_m_s3``;
+- ``judder``: ``accel_p2p_after_lock_m_s2`` and ``jerk_max_m_s3``;
+- ``heavy-load``: ``clutch_energy_J`` and ``engine_speed_min_rpm``;
+- ``tip-out-reengage``: ``engine_speed_min_rpm``, ``engine_stalled`` and ``n_lock_events``.
+
+Writes ``OUT/metrics.json`` (all engagement metrics of every run, plus ``rollback_m``).
+``--quick``: law (6) on the reduced model only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivetrain_ctrl import default_params, engagement_metrics, load_scenario, run_scenario
+from drivetrain_ctrl.core import json_ready
+
+SCENARIOS = ("hill-start", "worn-clutch", "judder", "heavy-load", "tip-out-reengage")
+FOCUS = {
+    "hill-start": ("rollback_m",),
+    "worn-clutch": ("clutch_energy_J", "jerk_max_m_s3"),
+    "judder": ("accel_p2p_after_lock_m_s2", "jerk_max_m_s3"),
+    "heavy-load": ("clutch_energy_J", "engine_speed_min_rpm"),
+    "tip-out-reengage": ("engine_speed_min_rpm", "engine_stalled", "n_lock_events"),
+}
+
+
+def rollback(res: Any) -> float:
+    """Largest backward displacement [m] of the vehicle from its position at the run's start."""
+    i = res.model.state_names.index("pos_vehicle")
+    x = res.x[:, i]
+    return float(max(0.0, x[0] - float(np.min(x))))
+
+
+def main(*, quick: bool = False, out: Path | None = None) -> dict[str, Any]:
+    p = default_params()
+    kinds = ("reduced",) if quick else ("reduced", "full")
+    ctls = ("paper",) if quick else ("paper", "pi")
+    runs: dict[str, Any] = {}
+    for name in SCENARIOS:
+        sc = load_scenario(name, params=p)
+        for kind in kinds:
+            dt = sc.drivetrain(p, kind=kind)
+            for ctl in ctls:
+                res = run_scenario(sc, dt, controller=ctl)
+                m = engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
+                m["rollback_m"] = rollback(res)
+                runs[f"{name}/{ctl}/{kind}"] = m
+                focus = ", ".join(f"{k} = {m[k]!r}" for k in FOCUS[name])
+                print(
+                    f"{name:17s} {ctl:5s} {kind:7s} lock-up {m['lockup_time_s']!r} s "
+                    f"(horizon {sc.t_end:g} s); {focus}"
+                )
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "metrics.json").write_text(json.dumps(json_ready(runs), indent=1, sort_keys=True))
+    return runs
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--out", type=Path, default=Path("reports/hard_scenarios"))
+    a = ap.parse_args()
+    main(quick=a.quick, out=a.out)
