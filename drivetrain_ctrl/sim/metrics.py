@@ -204,7 +204,9 @@ METRICS: dict[str, MetricInfo] = {
         "rpm", f"Highest engine speed at the samples (the flare), {_W}."
     ),
     "engine_stalled": MetricInfo(
-        "", f"True if the engine's friction is in its standstill mode at some sample, {_W}."
+        "",
+        f"True if the engine stops at some sample, {_W}: its speed at or below 0, or its "
+        "friction in the standstill mode.",
     ),
     "tracking_rms_rpm": MetricInfo(
         "rpm",
@@ -611,11 +613,13 @@ def engagement_metrics(
         w_win = np.concatenate([w[in_w], ends])
         out["engine_speed_min_rpm"] = float(rad_s_to_rpm(float(np.min(w_win))))
         out["engine_speed_max_rpm"] = float(rad_s_to_rpm(float(np.max(w_win))))
-        stalled = False
+        # stopped: at or below zero speed (dragged backwards by the clutch it is no longer an
+        # engine), or its friction in the standstill mode
+        stalled = bool(np.min(w_win) <= 0.0)
         body = engine.removeprefix("omega_")
         for k, fi in enumerate(model.frictions):
             if fi.kind == "ground" and model.chain.bodies[fi.index].name == body:
-                stalled = bool(np.any(res.fm[in_w, k] == 0))
+                stalled = stalled or bool(np.any(res.fm[in_w, k] == 0))
         out["engine_stalled"] = stalled
         if reference is not None and slips_in_slip_window and np.any(trk):
             err = np.asarray(reference(grid[trk]), dtype=float) - np.interp(grid[trk], t, w)
@@ -642,7 +646,7 @@ def engagement_metrics(
     out["n_backlash_crossings"] = crossings
 
     if out.get("engine_stalled"):
-        notes.append("the engine stalled (its friction entered standstill)")
+        notes.append("the engine stalled (it stopped or turned backwards)")
     if out["inconsistent_decisions"]:
         notes.append(
             f"{out['inconsistent_decisions']} mode decision(s) found no consistent stuck/slip "

@@ -438,3 +438,25 @@ def test_the_readme_docs_and_analyses_quote_only_names_of_the_table() -> None:
     quoted = {(f.name, k) for f in files for k in pattern.findall(f.read_text(encoding="utf-8"))}
     assert {k for _, k in quoted} >= {"lockup_time_s", "jerk_max_m_s3", "tracking_rms_rpm"}
     assert {(f, k) for f, k in quoted if k not in METRICS} == set()
+
+
+def test_an_engine_turned_backwards_counts_as_stalled(car_runs: dict[str, tuple]) -> None:
+    """A wrong-sign controller can drag the engine through zero while its friction slips
+    backwards (never in the standstill mode): that is a stall too. The engage-ramp run with the
+    engine speed made negative at one sample inside the window W = [start, lock-up + 1 s], and
+    at one after it."""
+    import dataclasses
+
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+
+    start = load_scenario("engage-ramp").start_time
+    res, dt, m = car_runs["engage-ramp/full"]
+    assert m["engine_stalled"] is False
+    w_end = m["lockup_time_s"] + 1.0
+    assert res.t[-1] > w_end + 0.1
+    j = res.model.state_index("omega_engine")
+    for t_at, expected in ((0.5 * (start + w_end), True), (w_end + 0.05, False)):
+        x = res.x.copy()
+        x[int(np.searchsorted(res.t, t_at)), j] = -5.0
+        got = engagement_metrics(dataclasses.replace(res, x=x), dt, start=start)["engine_stalled"]
+        assert got is expected, (t_at, got)
