@@ -453,9 +453,9 @@ def test_an_engine_turned_backwards_counts_as_stalled(car_runs: dict[str, tuple]
     res, dt, m = car_runs["engage-ramp/full"]
     assert m["engine_stalled"] is False
     w_end = m["lockup_time_s"] + 1.0
-    assert res.t[-1] > w_end + 0.1
+    assert res.t[-1] > w_end + 0.005
     j = res.model.state_index("omega_engine")
-    for t_at, expected in ((0.5 * (start + w_end), True), (w_end + 0.05, False)):
+    for t_at, expected in ((0.5 * (start + w_end), True), (0.5 * (w_end + res.t[-1]), False)):
         x = res.x.copy()
         x[int(np.searchsorted(res.t, t_at)), j] = -5.0
         got = engagement_metrics(dataclasses.replace(res, x=x), dt, start=start)["engine_stalled"]
