@@ -444,3 +444,17 @@ def test_jerk_difference_quotients_on_uneven_intervals() -> None:
     right = np.array([1.0, 2.0, 4.0, 0.0])
     left = np.array([1.0, 3.0, 5.0, 7.0])
     assert jerk(t, right, left).tolist() == [(3.0 - 1.0) / 0.5, (7.0 - 4.0) / 1.5]
+
+
+def test_the_notes_say_whether_the_clutch_locked_up(runs: dict[str, Run]) -> None:
+    for r in runs.values():
+        assert not any("did not lock up" in n for n in r.m["notes"])
+    r = runs["engage-ramp/reduced"]
+    t_lock = lockup(r.res, r.start)
+    assert t_lock is not None
+    sc = load_scenario("engage-ramp")
+    dt = sc.drivetrain(default_params(), kind="reduced")
+    short = run_scenario(sc, dt, t_end=0.5 * (r.start + t_lock))  # ends before lock-up
+    m = engagement_metrics(short, dt, start=sc.start_time)
+    assert m["lockup_time_s"] is None
+    assert any(n.startswith("the clutch did not lock up") for n in m["notes"])
