@@ -323,6 +323,8 @@ def clutch_plant_set(
     else:
         sc = load_scenario(scenario, params=p0)
         drive = sc.drivetrain(p0, kind=kind)
+        # the parameter box varies the scenario's car (its overrides applied once, here)
+        p0 = sc.params_for(p0)
         if trajectory is None:
             from drivetrain_ctrl.sim.run import run_scenario
 

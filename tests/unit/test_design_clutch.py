@@ -175,3 +175,26 @@ def test_trajectory_instants_and_a_pi_on_them():
     assert d.feasible and d.stable and d.phase_margin == pytest.approx(60.0, abs=0.5)
     with pytest.raises(ValueError, match=r"t = 0.1 s the clutch is 'open'"):
         clutch_plant_set(times=[0.1])
+
+
+def test_the_plants_are_of_the_scenarios_car():
+    """A scenario with parameter overrides (worn-clutch: clutch capacity x 0.7) gives plants of
+    that car: its plant without a box equals the one whose box sets k12_max to 0.7 of the
+    default explicitly (and differs from the default car's)."""
+    import numpy as np
+
+    from drivetrain_ctrl.design.clutch import clutch_plant_set
+    from drivetrain_ctrl.plant.params import default_params
+
+    k_new = default_params().clutch.k12_max
+    w = np.array([1.0, 10.0, 50.0])
+    kw = {"scenario": "worn-clutch", "times": [1.5], "kind": "reduced"}
+    worn = clutch_plant_set(**kw).freqresp(w)
+    explicit = clutch_plant_set(
+        **kw, box={"clutch.k12_max": {"values": [0.7 * k_new]}}, include_nominal=False
+    ).freqresp(w)
+    new = clutch_plant_set(
+        **kw, box={"clutch.k12_max": {"values": [k_new]}}, include_nominal=False
+    ).freqresp(w)
+    assert np.allclose(worn[0], explicit[0], rtol=1e-9)
+    assert not np.allclose(worn[0], new[0], rtol=1e-3)
