@@ -85,6 +85,8 @@ __all__ = [
     "StuckMargin",
     "OperatingPoint",
     "operating_point_from_result",
+    "slip_point_after_start",
+    "SLIP_DELAY_S",
     "slip_operating_point",
     "locked_trim",
     "rebuild_operating_point",
@@ -368,6 +370,36 @@ def operating_point_from_result(
         u = (1 - a) * u + a * np.asarray(result.u[k + 1])
     mode = Mode(tuple(int(v) for v in result.fm[k]), tuple(int(v) for v in result.reg[k]))
     return _make_op(result.model, x, u, mode, "trajectory", drivetrain=drivetrain, t=t)
+
+
+#: the slip operating point of a closed-loop run is taken this long after the controller start [s]
+SLIP_DELAY_S: float = 0.3
+
+
+def slip_point_after_start(
+    result: Any, drivetrain: Drivetrain, start: float, *, delay: float = SLIP_DELAY_S
+) -> OperatingPoint:
+    """The slip operating point of a run: the trajectory at ``start + delay`` [s] (``start``: the
+    controller start; the end of the run if that is later), or, if the clutch does not slip
+    there, the first sample after ``start`` at which it does. The point the controller report
+    and the studies' linear figures analyse the clutch loop at. ValueError if the clutch never
+    slips after ``start``."""
+    T = np.asarray(result.t)
+    t = min(start + delay, float(T[-1]))
+    op = operating_point_from_result(result, t, drivetrain=drivetrain)
+    if op.clutch_mode in ("slip+", "slip-"):
+        return op
+    # the first sample after the start at which the clutch slips (the mode held from a sample on
+    # is that of the last sample at its time, as operating_point_from_result takes it)
+    fc = _friction(result.model, "clutch")
+    fm = np.asarray(result.fm)[:, fc]
+    last = np.searchsorted(T, T, side="right") - 1
+    slips = np.isin(fm[last], (K.SLIP_POS, K.SLIP_NEG))
+    for k in np.flatnonzero((T > start) & slips):
+        op = operating_point_from_result(result, float(T[k]), drivetrain=drivetrain)
+        if op.clutch_mode in ("slip+", "slip-"):
+            return op
+    raise ValueError("scenario: the clutch never slips after the controller start; no slip point")
 
 
 def _driven_state(dt: Drivetrain) -> str:

@@ -55,10 +55,12 @@ from ..linear.margins import (
     root_locus,
 )
 from ..linear.operating_point import (
+    SLIP_DELAY_S,
     OperatingPoint,
     _driven_state,
     locked_trim,
     operating_point_from_result,
+    slip_point_after_start,
 )
 from ..plant.drivetrain import Drivetrain
 from ..plant.params import DrivetrainParams, default_params, load_params
@@ -90,10 +92,6 @@ MARGIN_KEYS: tuple[str, ...] = (
     "closed_loop_poles",
     "natural_frequencies_hz",
 )
-
-
-#: the slip operating point is taken this long after the controller start [s]
-SLIP_DELAY_S: float = 0.3
 
 
 #: horizon of the step comparison [s]
@@ -334,17 +332,7 @@ def _slip_root_loci(op: OperatingPoint, ctrl: Any, cl: ClutchLoop) -> dict[str, 
 
 
 def _slip_point(res: Any, dtr: Drivetrain, start: float) -> OperatingPoint:
-    t_end = float(res.t[-1])
-    t = min(start + SLIP_DELAY_S, t_end)
-    op = operating_point_from_result(res, t, drivetrain=dtr)
-    if op.clutch_mode in ("slip+", "slip-"):
-        return op
-    # the first instant after the start at which the clutch slips
-    for k in np.flatnonzero(np.asarray(res.t) > start):
-        op = operating_point_from_result(res, float(res.t[k]), drivetrain=dtr)
-        if op.clutch_mode in ("slip+", "slip-"):
-            return op
-    raise ValueError("scenario: the clutch never slips after the controller start; no slip point")
+    return slip_point_after_start(res, dtr, start, delay=SLIP_DELAY_S)
 
 
 def _lock_point(
