@@ -7,14 +7,13 @@ parameter set (plus each scenario's own parameter overrides), and prints per run
 and the figure each scenario is about:
 
 - ``hill-start``: ``rollback_m``, the largest backward displacement of the vehicle from its
-  position at t = 0 over the run [m] (computed here from the ``pos_vehicle`` state; not a
-  :data:`~drivetrain_ctrl.sim.metrics.METRICS` entry);
+  position at t = 0 over the run [m] (a :data:`~drivetrain_ctrl.sim.metrics.METRICS` entry);
 - ``worn-clutch``: ``clutch_energy_J`` and ``jerk_max_m_s3``;
 - ``judder``: ``accel_p2p_after_lock_m_s2`` and ``jerk_max_m_s3``;
 - ``heavy-load``: ``clutch_energy_J`` and ``engine_speed_min_rpm``;
 - ``tip-out-reengage``: ``engine_speed_min_rpm``, ``engine_stalled`` and ``n_lock_events``.
 
-Writes ``OUT/metrics.json`` (all engagement metrics of every run, plus ``rollback_m``).
+Writes ``OUT/metrics.json`` (all engagement metrics of every run).
 ``--quick``: law (6) on the reduced model only.
 """
 
@@ -24,8 +23,6 @@ import argparse
 import json
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from drivetrain_ctrl import default_params, engagement_metrics, load_scenario, run_scenario
 from drivetrain_ctrl.core import json_ready
@@ -40,13 +37,6 @@ FOCUS = {
 }
 
 
-def rollback(res: Any) -> float:
-    """Largest backward displacement [m] of the vehicle from its position at the run's start."""
-    i = res.model.state_names.index("pos_vehicle")
-    x = res.x[:, i]
-    return float(max(0.0, x[0] - float(np.min(x))))
-
-
 def main(*, quick: bool = False, out: Path | None = None) -> dict[str, Any]:
     p = default_params()
     kinds = ("reduced",) if quick else ("reduced", "full")
@@ -59,7 +49,6 @@ def main(*, quick: bool = False, out: Path | None = None) -> dict[str, Any]:
             for ctl in ctls:
                 res = run_scenario(sc, dt, controller=ctl)
                 m = engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
-                m["rollback_m"] = rollback(res)
                 runs[f"{name}/{ctl}/{kind}"] = m
                 focus = ", ".join(f"{k} = {m[k]!r}" for k in FOCUS[name])
                 print(

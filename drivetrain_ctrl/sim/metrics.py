@@ -10,7 +10,8 @@ One name, one definition: :data:`METRICS` maps every key :func:`engagement_metri
 unit and its definition (a :class:`MetricInfo`), and the command line, the demo's ``summary.md``,
 the controller report and the documentation take the definitions from there
 (:func:`metric_table`, :func:`metrics_markdown`). A name ends in its unit (``_s``, ``_J``,
-``_rpm``, ``_rad_s2``, ``_m_s2``, ``_m_s3``, ``_Nm``, ``_kmh``; ``_rel`` for a relative number).
+``_rpm``, ``_rad_s2``, ``_m_s2``, ``_m_s3``, ``_Nm``, ``_kmh``, ``_m``; ``_rel`` for a relative
+number).
 
 Windows. The figures measure the engagement commanded at ``start`` (the controller's start time,
 or the start of the pedal release): unless their definition names another interval, over the
@@ -254,6 +255,12 @@ METRICS: dict[str, MetricInfo] = {
         "-", f"Complete traversals of a backlash gap (changes of the contact side), {_W}."
     ),
     "final_vehicle_speed_kmh": MetricInfo("km/h", "Vehicle speed at the end of the run."),
+    "rollback_m": MetricInfo(
+        "m",
+        "Roll-back: the largest backward displacement of the vehicle from its position at the "
+        "start of the run, max(0, x(t0) - min x) of the pos_vehicle state at the samples, over "
+        "the whole run (a hill start's hill-hold figure); None without a pos_vehicle state in m.",
+    ),
 }
 
 #: the keys of :func:`engagement_metrics`, always all present (the keys of :data:`METRICS`)
@@ -461,6 +468,7 @@ def engagement_metrics(
     dt: DrivetrainLike | None = None,
     *,
     vehicle: str = "v_vehicle",
+    vehicle_pos: str = "pos_vehicle",
     engine: str = "omega_engine",
     clutch: str = "clutch",
     start: float | None = None,
@@ -480,7 +488,7 @@ def engagement_metrics(
     name the speed states used for the vehicle and engine figures, ``clutch`` the clutch friction
     element; figures whose state or element does not exist are None, and so are the vehicle
     figures for a ``vehicle`` state that is not a translational speed in m/s (their names carry
-    m/s units).
+    m/s units); ``vehicle_pos`` names the vehicle's position state [m] of ``rollback_m``.
     """
     if start is not None and not is_finite_real(start):
         raise ValueError(f"engagement_metrics: start = {start!r} [s]: must be a finite number")
@@ -500,6 +508,7 @@ def engagement_metrics(
     frictions = [fi.name for fi in model.frictions]
     for arg, val, default, known in (
         ("vehicle", vehicle, "v_vehicle", names),
+        ("vehicle_pos", vehicle_pos, "pos_vehicle", names),
         ("engine", engine, "omega_engine", names),
         ("clutch", clutch, "clutch", frictions),
     ):
@@ -629,6 +638,11 @@ def engagement_metrics(
         c1 = res.source_torques()[model.chain.sources[0].name]
         d = np.interp(grid[trk], t, T[:, fc[1]]) - np.interp(grid[trk], t, c1)
         out["torque_match_rms_Nm"] = _rms(d)
+
+    # roll-back: the vehicle's position state against its value at the start of the run
+    if vehicle_pos in names and model.state_units[names.index(vehicle_pos)] == "m":
+        xp = res.state(vehicle_pos)
+        out["rollback_m"] = max(0.0, float(xp[0]) - float(np.min(xp)))
 
     # driveline torques
     c_axle = _coupling_index(model, "axle")

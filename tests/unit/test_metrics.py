@@ -282,6 +282,7 @@ NAMES = (
     "n_backlash_impacts",
     "n_backlash_crossings",
     "final_vehicle_speed_kmh",
+    "rollback_m",
 )
 
 #: the unit a name's suffix stands for
@@ -295,6 +296,7 @@ SUFFIX_UNIT = {
     "_Nm": "N m",
     "_kmh": "km/h",
     "_rel": "-",
+    "_m": "m",
 }
 
 

@@ -458,3 +458,35 @@ def test_the_notes_say_whether_the_clutch_locked_up(runs: dict[str, Run]) -> Non
     m = engagement_metrics(short, dt, start=sc.start_time)
     assert m["lockup_time_s"] is None
     assert any(n.startswith("the clutch did not lock up") for n in m["notes"])
+
+
+# -- the vehicle's position ---------------------------------------------------------------------------
+
+
+def test_rollback_is_the_largest_backward_displacement() -> None:
+    """hill-start (12 %) under law (6) on the reduced model, once with its hill-hold brake and
+    once with the brake left off: ``rollback_m`` is ``x(t0) - min x`` of the recorded vehicle
+    position; without the brake the car rolls back decimetres, with it less than the 5 cm hill-start limit; on
+    the flat engage-ramp start the car never moves backwards (round-off, not None)."""
+    from drivetrain_ctrl.core.signals import constant
+
+    p = default_params()
+    sc = load_scenario("hill-start", params=p)
+    dt = sc.drivetrain(p, kind="reduced")
+    no_brake = dataclasses.replace(
+        sc, inputs=tuple((n, constant(0.0) if n == "brake" else s) for n, s in sc.inputs)
+    )
+    found = {}
+    for label, scen in (("brake", sc), ("no brake", no_brake)):
+        res = run_scenario(scen, dt, controller="paper")
+        m = engagement_metrics(res, dt, start=scen.start_time, reference=scen.reference)
+        x = res.x[:, res.model.state_names.index("pos_vehicle")]
+        plain = x[0] - x.min()
+        assert plain >= 0.0
+        assert m["rollback_m"] == pytest.approx(plain, rel=1e-8, abs=1e-15), label  # 9 digits
+        found[label] = m["rollback_m"]
+    assert found["no brake"] > 0.05 > found["brake"]
+    flat = load_scenario("engage-ramp")
+    dtf = flat.drivetrain(p, kind="full")
+    mf = engagement_metrics(run_scenario(flat, dtf), dtf, start=flat.start_time)
+    assert mf["rollback_m"] is not None and 0.0 <= mf["rollback_m"] < 1e-12  # round-off
