@@ -41,10 +41,10 @@ import numpy as np
 import pandas as pd
 from dask.distributed import WorkerPlugin
 
-from .case import Case, CaseError, run_case
+from .case import LINEAR_FIGURES, Case, CaseError, run_case
 from .study import TEXT_METRICS, Criterion, Study, StudyError, load_study, sample_table
 
-__all__ = ["KernelWarmup", "StudyRun", "read_results", "run_chunk", "run_study"]
+__all__ = ["KernelWarmup", "StudyRun", "folder_lock", "read_results", "run_chunk", "run_study"]
 
 RESULTS = "results"
 #: the columns every table has before the parameters
@@ -121,6 +121,7 @@ def _row(
     record: Mapping[str, Any],
     metrics: Sequence[str],
     criteria: Sequence[Criterion],
+    linear: bool = False,
 ) -> dict[str, Any]:
     key, sample, controller, scenario, values = item
     status = str(record.get("status") or "failed")
@@ -138,6 +139,10 @@ def _row(
             continue
         v = record.get(m)
         row[m] = _as_text(v) if m in TEXT_METRICS else _as_number(v)
+    if linear:
+        for k in LINEAR_FIGURES:
+            row[k] = _as_number(record.get(k))
+        row["linear_note"] = _as_text(record.get("linear_note"))
     ok = status == "ok"
     for c in criteria:
         passed = ok and bool(c.check([_as_number(record.get(c.metric))])[0])
@@ -153,10 +158,12 @@ def run_chunk(
     metrics: Sequence[str],
     criteria: Sequence[Criterion],
     run: Runner = run_case,
+    linear: bool = False,
 ) -> list[dict[str, Any]]:
     """The rows of one chunk (runs on a worker): ``run`` (:func:`run_case`) on every case; an
     exception of one run (invalid parameter values, a simulator error) becomes a failed row with
-    the reason, so one bad sample never stops a chunk."""
+    the reason, so one bad sample never stops a chunk. ``linear``: the rows have the
+    ``lin:`` columns and ``linear_note``."""
     rows = []
     for item, case in zip(items, cases, strict=True):
         try:
@@ -165,7 +172,7 @@ def run_chunk(
             record = {"status": "failed", "error": f"invalid input: {exc}"}
         except Exception as exc:  # noqa: BLE001 - recorded with its reason, the study goes on
             record = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
-        rows.append(_row(item, record, metrics, criteria))
+        rows.append(_row(item, record, metrics, criteria, linear))
     return rows
 
 
@@ -186,6 +193,8 @@ def _schema(study: Study) -> Any:
             for m in study.metrics
             if m != "status"
         ),
+        *(pa.field(k, pa.float64()) for k in (LINEAR_FIGURES if study.linear else ())),
+        *([pa.field("linear_note", pa.string())] if study.linear else []),
         *(pa.field(f"pass:{c.text}", pa.bool_()) for c in study.criteria),
         pa.field("pass", pa.bool_()),
     ]
@@ -275,6 +284,42 @@ def _prepare_folder(study: Study, out: Path) -> pd.DataFrame:
     return samples
 
 
+LOCK = ".lock"
+
+
+@contextlib.contextmanager
+def folder_lock(out: Path) -> Iterator[Path]:
+    """Hold the study folder ``out`` for one writer: an exclusive ``flock`` on ``out/.lock``
+    (created if missing; it then holds the holder's pid, host and start time). A second
+    ``study run`` on the same folder gets a :class:`StudyError` naming the holder instead of
+    writing beside it. The operating system releases the lock when its holder exits, however
+    it ends (Ctrl-C, killed), so a lock is never stale: the file left behind is only a note of
+    the last holder. The file is never removed (a waiting writer could lock a removed file)."""
+    import fcntl
+    import socket
+
+    path = out / LOCK
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 4096, 0).decode(errors="replace").strip() or "unknown"
+            raise StudyError(
+                f"out = {str(out)!r}: another study run is writing to this folder ({holder}); "
+                "wait for it to finish (a re-run then resumes), or give another folder"
+            ) from None
+        note = (
+            f"pid {os.getpid()} on host {socket.gethostname()}, since "
+            f"{time.strftime('%Y-%m-%d %H:%M:%S %Z')}"
+        )
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, note.encode() + b"\n", 0)
+        yield path
+    finally:
+        os.close(fd)  # releases the lock
+
+
 def _items(study: Study, samples: pd.DataFrame, missing: set[str]) -> Iterator[Any]:
     names = list(samples.columns)
     values = samples.to_numpy()
@@ -334,6 +379,23 @@ def run_study(
     if not callable(run):
         raise StudyError(f"run = {run!r}: must be a function from a Case to a record")
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    with folder_lock(out):
+        return _run_locked(study, out, client, workers, scheduler, chunk_size, progress, run, tic)
+
+
+def _run_locked(
+    study: Study,
+    out: Path,
+    client: Any,
+    workers: int | None,
+    scheduler: str | None,
+    chunk_size: int | None,
+    progress: bool,
+    run: Runner,
+    tic: float,
+) -> StudyRun:
+    """:func:`run_study` once its arguments are checked and the folder is locked."""
     samples = _prepare_folder(study, out)
     all_keys = study.keys()
     missing = set(all_keys) - _present_keys(out)
@@ -373,6 +435,7 @@ def run_study(
                     study.metrics,
                     study.criteria,
                     run,
+                    study.linear,
                     key=_chunk_name([it[0] for it, _ in ch]).removesuffix(".parquet"),
                     pure=False,
                 )

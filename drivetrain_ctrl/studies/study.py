@@ -24,6 +24,7 @@ The file (units SI, as in the parameter sets)::
     metrics = ["lockup_time_s", "jerk_max_m_s3"]   # kept per run (default: every figure)
     criteria = ["lockup_time_s <= 3.0", "engine_speed_min_rpm >= 700"]
     t_end = 3.0                         # optional: end of each run [s]
+    linear = true                       # the paired linear figures per run (default true)
 
     [sampling]
     method = "lhs"                      # mc | lhs | sobol | grid
@@ -39,8 +40,10 @@ Distributions: ``uniform`` (``low``, ``high``), ``normal`` (``mean``, ``std``), 
 (``mean``, ``std``, ``low``, ``high``), ``loguniform`` (``low`` > 0, ``high``), ``values`` (a
 list ``values``, drawn with equal probability; the grid method needs every parameter given so).
 A parameter is a dotted name of the parameter set (``clutch.static_ratio``, ``vehicle.M_v``,
-``actuator.omega_a``, ...) or ``controller.<gain>`` (``controller.k_r``, ``controller.kp``, ...:
-applied to every controller of the study, each of which must have the gain).
+``actuator.omega_a``, ...), ``controller.<gain>`` (``controller.k_r``, ``controller.kp``, ...:
+applied to every controller of the study, each of which must have the gain) or
+``scenario.<field>`` (``scenario.slope`` [rad], ``scenario.v_vehicle0`` [m/s], ...: one of
+:data:`~drivetrain_ctrl.studies.case.SCENARIO_FIELDS`, applied to every scenario of the study).
 """
 
 from __future__ import annotations
@@ -66,7 +69,7 @@ from ..core.validate import did_you_mean, is_finite_real, reject_unknown
 from ..plant.params import DEFAULT_SET, DrivetrainParams, ParameterError, load_params
 from ..scenarios.scenario import load_scenario
 from ..sim.metrics import METRICS
-from .case import MODELS, Case
+from .case import MODELS, SCENARIO_FIELDS, Case
 
 __all__ = [
     "DISTRIBUTIONS",
@@ -97,6 +100,8 @@ OPERATORS: tuple[str, ...] = ("<=", ">=", "<", ">", "==", "!=")
 TEXT_METRICS: frozenset[str] = frozenset({"model", "status", "notes"})
 #: prefix of a controller gain among the uncertain parameters
 CONTROLLER_PREFIX = "controller."
+#: prefix of a scenario field among the uncertain parameters (one of ``case.SCENARIO_FIELDS``)
+SCENARIO_PREFIX = "scenario."
 
 _CRITERION = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(<=|>=|==|!=|<|>)\s*(\S+)\s*$")
 
@@ -273,7 +278,9 @@ class Study:
     ``controllers``, ``scenarios``: built-in names or files (each sample runs under every
     controller on every scenario); ``model``, ``params``: model kind and parameter set;
     ``metrics``: the figures of merit kept per run; ``criteria``: the pass criteria;
-    ``t_end``/``rtol``: the runs' horizon [s] and tolerance (None: the scenario's / default).
+    ``t_end``/``rtol``: the runs' horizon [s] and tolerance (None: the scenario's / default);
+    ``linear``: the paired linear figures of every run (``lin:`` columns,
+    :func:`~drivetrain_ctrl.studies.case.linear_figures`).
     """
 
     name: str
@@ -290,6 +297,7 @@ class Study:
     t_end: float | None = None
     rtol: float | None = None
     description: str = ""
+    linear: bool = True
     _specs: dict[str, ControllerSpec] = field(
         default_factory=dict, repr=False, compare=False, hash=False
     )
@@ -324,6 +332,7 @@ class Study:
                 "criteria",
                 "t_end",
                 "rtol",
+                "linear",
             ],
             error=StudyError,
         )
@@ -362,6 +371,9 @@ class Study:
                     )
             metrics = tuple(dict.fromkeys(metrics_in))
         metrics = tuple(dict.fromkeys([*metrics, *(c.metric for c in criteria)]))
+        linear = s.get("linear", True)
+        if not isinstance(linear, bool):
+            raise StudyError(f"study.linear = {linear!r}: must be true or false")
         t_end = s.get("t_end")
         rtol = s.get("rtol")
         for k, v in (("t_end", t_end), ("rtol", rtol)):
@@ -420,6 +432,7 @@ class Study:
             criteria=criteria,
             t_end=None if t_end is None else float(t_end),
             rtol=None if rtol is None else float(rtol),
+            linear=linear,
         )
         return study
 
@@ -436,6 +449,7 @@ class Study:
         except ValueError as exc:
             raise StudyError(f"study.params = {str(self.params)!r}: {exc}") from None
         scenario_names: list[str] = []
+        loaded = []
         for i, sc in enumerate(self.scenarios):
             try:
                 s = load_scenario(sc, params=p)
@@ -451,6 +465,7 @@ class Study:
             if s.name in scenario_names:
                 raise StudyError(f"study.scenarios[{i}] = {str(sc)!r}: {s.name!r} given twice")
             scenario_names.append(s.name)
+            loaded.append(s)
         object.__setattr__(self, "_scenario_names", tuple(scenario_names))
         specs: dict[str, ControllerSpec] = {}
         for i, c in enumerate(self.controllers):
@@ -486,6 +501,22 @@ class Study:
                             change: dict[str, Any] = {gain: v}
                             dataclasses.replace(spec, **change)
                         except (ControllerError, ValueError) as exc:
+                            raise StudyError(f"{where} = {v!r}: {exc}") from None
+                continue
+            if prm.name.startswith(SCENARIO_PREFIX):
+                fld = prm.name.removeprefix(SCENARIO_PREFIX)
+                if fld not in SCENARIO_FIELDS:
+                    raise StudyError(
+                        f"{where}: unknown scenario field {fld!r}"
+                        f"{did_you_mean(fld, SCENARIO_FIELDS)}; the fields a study may vary: "
+                        f"{', '.join(SCENARIO_FIELDS)}"
+                    )
+                for s in loaded:
+                    for v in prm.support():
+                        try:
+                            new: dict[str, Any] = {fld: float(v)}
+                            dataclasses.replace(s, **new)
+                        except ValueError as exc:
                             raise StudyError(f"{where} = {v!r}: {exc}") from None
                 continue
             try:
@@ -538,12 +569,22 @@ class Study:
             scenario=self.scenarios[scenario],
             # the set loaded once (not re-read from its file for every case)
             params=self._params if self._params is not None else self.params,
-            overrides={k: v for k, v in values.items() if not k.startswith(CONTROLLER_PREFIX)},
+            overrides={
+                k: v
+                for k, v in values.items()
+                if not k.startswith((CONTROLLER_PREFIX, SCENARIO_PREFIX))
+            },
+            scenario_overrides={
+                k.removeprefix(SCENARIO_PREFIX): v
+                for k, v in values.items()
+                if k.startswith(SCENARIO_PREFIX)
+            },
             model=self.model,
             controller=spec,
             rtol=self.rtol,
             t_end=self.t_end,
             label=row_key(sample, controller, self.scenario_names[scenario]),
+            linear=self.linear,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -561,6 +602,7 @@ class Study:
             "criteria": [c.text for c in self.criteria],
             "t_end": self.t_end,
             "rtol": self.rtol,
+            "linear": self.linear,
             "method": self.method,
             "samples": self.samples,
             "seed": self.seed,
