@@ -11,6 +11,9 @@ Subcommands::
     drivetrain-ctrl study run STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS]
     drivetrain-ctrl design pi|robust-pi|pid|hinf --spec NAME|SPEC.toml --out CONTROLLER.toml
                            [--name NAME] [--no-check]
+    drivetrain-ctrl compare [--controllers paper,pi,robust-pi,hinf[,FILE.toml...]]
+                            [--scenarios all|NAME,...] [--model full|reduced]
+                            [--params NAME|FILE] [--weights KEY=W,...] [--workers N] --out DIR
 
 ``simulate`` writes into DIR: ``trajectory.csv`` and ``events.csv`` (column names carry units),
 ``metrics.json`` (figures of merit, :func:`drivetrain_ctrl.sim.metrics.engagement_metrics`;
@@ -25,6 +28,10 @@ limiting plants, writes the controller file, then runs it on the switching plant
 ``[check]``: ``paper-start`` on both models by default) and prints its engagement metrics beside
 the linear figures; an engine stall, no lock-up or a Zeno stop is said loudly (exit code 1, the
 file is written all the same).
+
+``compare`` runs every controller on every scenario in parallel and writes ``DIR/compare.html``,
+``DIR/compare.pdf`` and ``DIR/data.json`` (:mod:`drivetrain_ctrl.studies.compare`); a controller
+or scenario that cannot take part is named on stderr and in the report, the others compare.
 
 ``study run`` runs a robustness study file (:mod:`drivetrain_ctrl.studies.study`) on Dask into
 ``DIR/results/*.parquet`` and resumes an interrupted run (:mod:`drivetrain_ctrl.studies.runner`).
@@ -714,6 +721,53 @@ def _cmd_study_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _weights(text: str) -> dict[str, float]:
+    """``--weights KEY=W,...``: score key -> weight (checked by compare)."""
+    out: dict[str, float] = {}
+    for item in (x.strip() for x in text.split(",")):
+        key, eq, val = item.partition("=")
+        try:
+            out[key.strip()] = float(val)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{item!r}: must read KEY=NUMBER") from None
+        if not eq:
+            raise argparse.ArgumentTypeError(f"{item!r}: must read KEY=NUMBER")
+    return out
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from .studies.compare import CompareError, compare
+
+    _check_out_dir(Path(args.out))
+    try:
+        res = compare(
+            controllers=args.controllers,
+            scenarios=args.scenarios,
+            model=args.model,
+            params=args.params,
+            weights=args.weights,
+            t_end=args.t_end,
+            workers=args.workers,
+            progress=not args.no_progress,
+            warn=lambda m: print(f"{PROG}: {m}", file=sys.stderr),
+        )
+    except CompareError as exc:
+        raise InputError(f"compare: {_msg(exc)}") from None
+    try:
+        rep = res.plot(Path(args.out))
+    except OSError as exc:
+        raise RunError(f"cannot write the comparison to {args.out}: {exc}") from None
+    for line in res.data["verdict"]["reasoning"]:
+        print(line)
+    print(
+        f"{len(res.data['runs']) * len(res.data['inputs']['scenarios'])} run(s) in "
+        f"{res.wall_s:.1f} s on {res.workers} worker(s)"
+    )
+    for f in rep.files:
+        print(f)
+    return 0
+
+
 # ------------------------------------------------------------------------------------------------
 # parser
 # ------------------------------------------------------------------------------------------------
@@ -833,6 +887,45 @@ def build_parser() -> argparse.ArgumentParser:
     ssub = sc.add_subparsers(dest="scenarios_command", metavar="ACTION", required=True)
     sl = ssub.add_parser("list", help="list the built-in scenarios")
     sl.set_defaults(func=_cmd_scenarios_list)
+
+    cp = sub.add_parser(
+        "compare",
+        help="compare controllers on scenarios: compare.html, compare.pdf, data.json",
+        description="Run every controller on every closed-loop scenario in parallel (Dask) and "
+        "compare them: linear figures, engagement metrics with pass/fail, overlays, linear "
+        "against nonlinear, and a ranking (drivetrain_ctrl.studies.compare).",
+    )
+    cp.add_argument(
+        "--controllers",
+        default="paper,pi,robust-pi,hinf",
+        help=f"comma-separated: {_controller_names(', ')} or controller .toml files "
+        "(default: paper,pi,robust-pi,hinf)",
+    )
+    cp.add_argument(
+        "--scenarios",
+        default="all",
+        help="all (every built-in closed-loop scenario) or comma-separated names / .toml files",
+    )
+    cp.add_argument("--model", choices=MODELS, default="full", help="model (default: full)")
+    cp.add_argument("--params", default=DEFAULT_PARAMS, help="parameter set name or .toml file")
+    cp.add_argument(
+        "--weights",
+        type=_weights,
+        default=None,
+        help="score weights KEY=W,... (keys: engagement_time_s, clutch_energy_J, jerk_max_m_s3, "
+        "tracking_rms_rpm, ms; default 1 each)",
+    )
+    cp.add_argument(
+        "--t-end", type=_positive_float, default=None, help="end time [s] (default: scenario's)"
+    )
+    cp.add_argument(
+        "--workers", type=_positive_int, default=None, help="worker processes (default: cores)"
+    )
+    cp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    cp.add_argument(
+        "--out", required=True, type=_out_dir, help="output directory (created if needed)"
+    )
+    cp.set_defaults(func=_cmd_compare)
 
     st = sub.add_parser("study", help="robustness studies: run a study file on Dask")
     stsub = st.add_subparsers(dest="study_command", metavar="ACTION", required=True)

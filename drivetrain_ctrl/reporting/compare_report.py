@@ -1,0 +1,409 @@
+"""The comparison report: figures, a self-contained HTML page, a PDF and ``data.json``.
+
+Renders the ``data`` of :func:`~drivetrain_ctrl.studies.compare.compare` (nothing is computed
+here): the Bode overlay of L and S of every controller at its nominal slip point (the slip mode;
+in lock mode the clutch loop is open and has no Bode diagram, which the page says), one figure of
+time responses per scenario (engine and primary-shaft speed, pedal, clutch torque, vehicle
+acceleration; every controller in each, named in the legend), and the tables: verdict (with the
+reasoning), linear figures (nominal and per scenario, and the design's recorded worst case),
+switching-plant metrics with pass/fail, linear against nonlinear, and what was left out.
+
+:func:`write_compare_report` writes ``compare.html`` (figures as embedded PNGs, tables sortable
+by a click on a column heading: a few lines of plain JavaScript), ``compare.pdf`` and
+``data.json`` (keys sorted, no NaN: the same data gives the same bytes).
+
+Check the page in a browser without console errors (what ``tests/integration/test_compare.py``
+does when Chromium is installed)::
+
+    chromium --headless --disable-gpu --enable-logging=stderr --v=0 \\
+        --dump-dom DIR/compare.html > /dev/null
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .figures import write_report_pdf
+
+__all__ = ["CompareReport", "compare_figures", "compare_sections", "write_compare_report"]
+
+#: the rows of a time-response figure: (series key, axis label)
+_ROWS: tuple[tuple[str, str], ...] = (
+    ("omega_engine_rpm", "engine (solid) and\nprimary (dashed) [rpm]"),
+    ("pedal_mm", "pedal x_c [mm]"),
+    ("clutch_torque_Nm", "clutch torque [N m]"),
+    ("vehicle_accel_m_s2", "vehicle accel. [m/s^2]"),
+)
+#: the metrics shown in the switching-plant table
+_METRIC_COLUMNS: tuple[str, ...] = (
+    "lockup_time_s",
+    "engagement_time_s",
+    "clutch_energy_J",
+    "engine_speed_min_rpm",
+    "engine_speed_max_rpm",
+    "tracking_rms_rpm",
+    "lurch_rad_s2",
+    "jerk_max_m_s3",
+    "n_lock_events",
+    "rollback_m",
+    "energy_residual_rel",
+)
+_MARGINS: tuple[tuple[str, str], ...] = (
+    ("gain_margin_db", "GM [dB]"),
+    ("phase_margin_deg", "PM [deg]"),
+    ("delay_margin_s", "delay margin [s]"),
+    ("disk_margin_db", "disk GM [dB]"),
+    ("disk_margin_deg", "disk PM [deg]"),
+    ("ms", "Ms"),
+    ("mt", "Mt"),
+    ("crossover_rad_s", "crossover [rad/s]"),
+    ("bandwidth_rad_s", "bandwidth [rad/s]"),
+    ("stable", "stable"),
+)
+_DESIGN: tuple[tuple[str, str], ...] = (
+    ("method", "design"),
+    ("n_plants", "plants"),
+    ("ms_max", "Ms max"),
+    ("mt_max", "Mt max"),
+    ("gain_margin_db_min", "GM min [dB]"),
+    ("phase_margin_deg_min", "PM min [deg]"),
+    ("disk_margin_db_min", "disk GM min [dB]"),
+    ("crossover_rad_s_min", "crossover min [rad/s]"),
+    ("crossover_rad_s_max", "crossover max [rad/s]"),
+    ("all_stable", "all stable"),
+)
+
+Table = tuple[str, list[list[str]]]
+Section = tuple[str, list[str], list[Table], list[str]]
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _color(i: int) -> str:
+    return f"C{i % 10}"
+
+
+def compare_figures(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The figures of the report (matplotlib :class:`~matplotlib.figure.Figure` s, no pyplot):
+    ``bode_slip`` and ``time_<scenario>`` per scenario."""
+    from matplotlib.figure import Figure
+
+    ctrls = list(data["inputs"]["controllers"])
+    figs: dict[str, Any] = {}
+    fig = Figure(figsize=(8.0, 7.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
+    drawn = 0
+    for i, c in enumerate(ctrls):
+        slip = (data["nominal_linear"].get(c) or {}).get("slip") or {}
+        bd = slip.get("bode")
+        if not bd:
+            continue
+        drawn += 1
+        w = bd["omega_rad_s"]
+        lab = c if slip.get("stable") is not False else f"{c} (unstable)"
+        axes[0].semilogx(w, bd["L_db"], color=_color(i), label=lab)
+        axes[1].semilogx(w, bd["L_deg"], color=_color(i), label=lab)
+        axes[2].semilogx(w, bd["S_db"], color=_color(i), label=lab)
+    axes[0].axhline(0.0, color="k", lw=0.5)
+    axes[0].set_ylabel("|L| [dB]")
+    axes[1].set_ylabel("phase L [deg]")
+    axes[2].set_ylabel("|S| [dB]")
+    axes[2].set_xlabel("frequency [rad/s]")
+    for ax in axes:
+        ax.grid(True, which="both", lw=0.3)
+    if drawn:
+        axes[0].legend(fontsize=8, loc="best")
+    axes[0].set_title(
+        f"Slip mode: loop L and sensitivity S at the nominal slip point "
+        f"({data['definitions']['nominal_scenario']}, {data['inputs']['model']} model)"
+    )
+    figs["bode_slip"] = fig
+    for s in data["inputs"]["scenarios"]:
+        fig = Figure(figsize=(8.0, 9.0), layout="constrained")
+        axes = fig.subplots(len(_ROWS), 1, sharex=True)
+        for i, c in enumerate(ctrls):
+            rec = data["runs"][c][s]
+            ser = rec.get("series")
+            if not ser:
+                continue
+            t = ser["t_s"]
+            for ax, (key, _) in zip(axes, _ROWS, strict=True):
+                ax.plot(t, ser[key], color=_color(i), lw=1.1, label=c)
+            axes[0].plot(t, ser["omega_primary_rpm"], color=_color(i), lw=0.9, ls="--")
+        for ax, (_, label) in zip(axes, _ROWS, strict=True):
+            ax.set_ylabel(label, fontsize=8)
+            ax.grid(True, lw=0.3)
+        axes[-1].set_xlabel("time [s]")
+        axes[0].legend(fontsize=8, loc="best", title="controller", title_fontsize=8)
+        axes[0].set_title(f"Scenario {s} ({data['inputs']['model']} model)")
+        figs[f"time_{s}"] = fig
+    return figs
+
+
+def compare_sections(data: Mapping[str, Any]) -> list[Section]:
+    """``(title, paragraphs, tables, figure names)`` of the report, in reading order; a table is
+    ``(caption, rows)`` with the first row the header."""
+    inp, dfn = data["inputs"], data["definitions"]
+    ctrls, scens = list(inp["controllers"]), list(inp["scenarios"])
+    out: list[Section] = []
+    paras = [
+        f"Controllers: {', '.join(ctrls)}. Scenarios: {', '.join(scens)}. Model: {inp['model']}; "
+        f"parameter set: {inp['params']}"
+        + (f"; horizon cut to {inp['t_end_s']:g} s" if inp.get("t_end_s") else "")
+        + ".",
+        "Criteria per run: " + "; ".join(dfn["criteria"].values()) + ".",
+    ]
+    for s in scens:
+        paras.append(f"{s}: {inp['scenario_descriptions'][s]}")
+    tables: list[Table] = []
+    if data["invalid"]:
+        rows = [["kind", "name", "left out because"]]
+        rows += [[p["kind"], p["name"], p["reason"]] for p in data["invalid"]]
+        tables.append(("Left out of the comparison", rows))
+    out.append(("Inputs", paras, tables, []))
+
+    w = inp["weights"]
+    v = data["verdict"]
+    rows = [["rank", "controller", "criteria passed", "score"] + [f"{k} (w {w[k]:g})" for k in w]]
+    for r in v["ranking"]:
+        rows.append(
+            [
+                str(r["rank"]),
+                r["controller"],
+                f"{r['criteria_passed']}/{r['criteria_applicable']}",
+                f"{r['score']:.3f}",
+            ]
+            + [f"{r['mean_ratio'][k]:.3f}" for k in w]
+        )
+    paras = [
+        "Ranked by criteria passed (more first), then by the weighted score (lower first): per "
+        "score key and scenario the value divided by the best valid controller's, capped at "
+        f"{dfn['ratio_cap']:g} (an undefined value counts as the cap), averaged over the "
+        "scenarios; the score is the weighted mean over the keys (1 = best everywhere; ms: the "
+        "nominal slip loop's peak sensitivity).",
+        *v["reasoning"],
+    ]
+    out.append(("Verdict", paras, [("Ranking", rows)], []))
+
+    rows = [["controller"] + [lab for _, lab in _MARGINS]]
+    for c in ctrls:
+        slip = (data["nominal_linear"].get(c) or {}).get("slip")
+        if slip is None:
+            why = (data["nominal_linear"].get(c) or {}).get("slip_reason") or "no slip loop"
+            rows.append([c] + [why] + ["-"] * (len(_MARGINS) - 1))
+        else:
+            rows.append([c] + [_fmt(slip.get(k)) for k, _ in _MARGINS])
+    drows = [["controller"] + [lab for _, lab in _DESIGN]]
+    for c in ctrls:
+        d = data["design"].get(c)
+        if d is None:
+            drows.append([c, "not recorded (no [design.achieved] table in the controller file)"])
+            drows[-1] += ["-"] * (len(_DESIGN) - 1)
+        else:
+            drows.append([c] + [_fmt(d.get(k)) for k, _ in _DESIGN])
+    srows = [["controller", "scenario", "t slip point [s]", "slip [rad/s]"]]
+    srows[0] += [lab for _, lab in _MARGINS]
+    for c in ctrls:
+        for s in scens:
+            lin = (data["runs"][c][s].get("linear") or {}).get("slip")
+            if lin is None:
+                srows.append([c, s, "-", "-"] + ["-"] * len(_MARGINS))
+                continue
+            op = lin["operating_point"]
+            srows.append(
+                [c, s, _fmt(op["t_s"]), _fmt(op["slip_speed_rad_s"])]
+                + [_fmt(lin.get(k)) for k, _ in _MARGINS]
+            )
+    paras = [
+        f"Slip mode: the clutch loop linearised at each run's slip point ({dfn['slip_delay_s']:g} s "
+        f"after the controller start); the nominal point is that of {dfn['nominal_scenario']}. "
+        "Lock mode: the clutch loop is open (x_c does not change the torque of a stuck clutch): "
+        "no margins and no Bode diagram.",
+        "Design worst case: the figures the design tool recorded over its plant set (the "
+        "controller file's [design.achieved] table), not recomputed here.",
+    ]
+    out.append(
+        (
+            "Linear figures",
+            paras,
+            [
+                ("Nominal slip loop", rows),
+                ("Design plant set, worst case (as recorded)", drows),
+                ("Slip loop per scenario", srows),
+            ],
+            ["bode_slip"],
+        )
+    )
+
+    crit = list(dfn["criteria"])
+    rows = [["controller", "scenario", "status"] + list(_METRIC_COLUMNS) + crit]
+    for c in ctrls:
+        for s in scens:
+            rec = data["runs"][c][s]
+            m = rec.get("metrics") or {}
+            cr = rec.get("criteria") or {}
+            rows.append(
+                [c, s, rec.get("status") or "-"]
+                + [_fmt(m.get(k)) for k in _METRIC_COLUMNS]
+                + ["n/a" if cr.get(k) is None else ("pass" if cr[k] else "FAIL") for k in crit]
+            )
+    errs = [
+        f"{c} on {s}: {data['runs'][c][s]['error']}"
+        for c in ctrls
+        for s in scens
+        if data["runs"][c][s].get("error")
+    ]
+    out.append(
+        (
+            "Switching plant",
+            ["Engagement metrics (definitions: the simulation page) and the criteria.", *errs],
+            [("Metrics and criteria", rows)],
+            [f"time_{s}" for s in scens],
+        )
+    )
+    rows = [["controller", "scenario", "disagree", "statement"]]
+    for c in ctrls:
+        for s in scens:
+            a = data["runs"][c][s].get("linear_vs_nonlinear") or {}
+            rows.append([c, s, _fmt(a.get("disagree")), a.get("statement") or "-"])
+    out.append(
+        (
+            "Linear against nonlinear",
+            [
+                f"They disagree when {dfn['disagree']}. Causes named from the run after the slip "
+                "point: lock-up, sign switch of the slip, saturation at a stroke limit, "
+                f"operating-point drift (slip speed changing by more than "
+                f"{100 * dfn['drift_threshold']:g} % within {dfn['drift_window_s']:g} s)."
+            ],
+            [("Prediction and result", rows)],
+            [],
+        )
+    )
+    return out
+
+
+_STYLE = (
+    "<style>body{font-family:sans-serif;max-width:1200px;margin:auto;padding:0 1em}"
+    "table{border-collapse:collapse;margin:0.5em 0;display:block;overflow-x:auto}"
+    "td,th{border:1px solid #999;padding:2px 6px;font-size:0.85em;text-align:left}"
+    "th{background:#eee;cursor:pointer;user-select:none}img{max-width:100%}"
+    "caption{text-align:left;font-weight:bold;padding:0.3em 0}</style>"
+)
+#: click a heading to sort a table by that column (numbers as numbers; again to reverse)
+_SORT_JS = """<script>
+document.querySelectorAll("table.sortable").forEach(function (table) {
+  var heads = table.querySelectorAll("th");
+  heads.forEach(function (th, col) {
+    th.title = "click to sort";
+    th.addEventListener("click", function () {
+      var body = table.tBodies[0];
+      var rows = Array.prototype.slice.call(body.rows);
+      var asc = th.getAttribute("data-order") !== "asc";
+      heads.forEach(function (h) { h.removeAttribute("data-order"); });
+      th.setAttribute("data-order", asc ? "asc" : "desc");
+      rows.sort(function (a, b) {
+        var x = a.cells[col] ? a.cells[col].textContent : "";
+        var y = b.cells[col] ? b.cells[col].textContent : "";
+        var p = parseFloat(x), q = parseFloat(y);
+        var r = (!isNaN(p) && !isNaN(q)) ? p - q : x.localeCompare(y);
+        return asc ? r : -r;
+      });
+      rows.forEach(function (r) { body.appendChild(r); });
+    });
+  });
+});
+</script>"""
+
+
+def _png(fig: Any) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _html(data: Mapping[str, Any], sections: Sequence[Section], figs: Mapping[str, Any]) -> str:
+    e = html.escape
+    title = f"Controller comparison ({data['inputs']['model']} model)"
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{e(title)}</title>",
+        _STYLE,
+        "</head><body>",
+        f"<h1>{e(title)}</h1>",
+    ]
+    for stitle, paras, tables, fnames in sections:
+        parts.append(f"<h2>{e(stitle)}</h2>")
+        parts += [f"<p>{e(p)}</p>" for p in paras]
+        for caption, rows in tables:
+            parts.append(f'<table class="sortable"><caption>{e(caption)}</caption><thead><tr>')
+            parts += [f"<th>{e(h)}</th>" for h in rows[0]]
+            parts.append("</tr></thead><tbody>")
+            for r in rows[1:]:
+                parts.append("<tr>" + "".join(f"<td>{e(x)}</td>" for x in r) + "</tr>")
+            parts.append("</tbody></table>")
+        for f in fnames:
+            if f in figs:
+                parts.append(
+                    f'<figure><img alt="{e(f)}" src="data:image/png;base64,{_png(figs[f])}">'
+                    "</figure>"
+                )
+    parts += [_SORT_JS, "</body></html>"]
+    return "\n".join(parts) + "\n"
+
+
+def _pdf(
+    data: Mapping[str, Any], sections: Sequence[Section], figs: Mapping[str, Any], path: Path
+) -> None:
+    blocks: list[tuple[Any, ...]] = [
+        ("h1", f"Controller comparison ({data['inputs']['model']} model)")
+    ]
+    for stitle, paras, tables, fnames in sections:
+        blocks.append(("h2", stitle))
+        blocks += [("p", p) for p in paras]
+        blocks += [("table", cap, rows) for cap, rows in tables]
+        blocks += [("figure", figs[f]) for f in fnames if f in figs]
+    write_report_pdf(blocks, path, header="drivetrain_ctrl controller comparison")
+
+
+@dataclass(frozen=True)
+class CompareReport:
+    """The files written by :func:`write_compare_report`: ``html``, ``pdf``, ``data``."""
+
+    html: Path
+    pdf: Path
+    data: Path
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        return (self.html, self.pdf, self.data)
+
+
+def write_compare_report(data: Mapping[str, Any], out: str | Path) -> CompareReport:
+    """Write ``compare.html``, ``compare.pdf`` and ``data.json`` of comparison ``data`` into
+    folder ``out`` (created); returns their paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
+    (out / "data.json").write_text(text, encoding="utf-8")
+    figs = compare_figures(data)
+    sections = compare_sections(data)
+    (out / "compare.html").write_text(_html(data, sections, figs), encoding="utf-8")
+    _pdf(data, sections, figs, out / "compare.pdf")
+    return CompareReport(out / "compare.html", out / "compare.pdf", out / "data.json")

@@ -1,0 +1,751 @@
+"""Comparing controller variants side by side: the linear loop and the switching plant together.
+
+:func:`compare` runs every controller on every (closed-loop) scenario as a
+:class:`~drivetrain_ctrl.studies.case.Case` on Dask (the studies' machinery: a local cluster of
+worker processes, or a given client; every worker loads the kernels once) and returns a
+:class:`Comparison` whose ``data`` (a JSON-ready dict; the same input gives the same bytes: no
+timestamps, no timings, floats rounded by :func:`~drivetrain_ctrl.core.serialize.json_ready`)
+holds every number behind every figure of the report
+(:mod:`drivetrain_ctrl.reporting.compare_report`, drawn by :meth:`Comparison.plot`).
+
+Per controller and scenario (one worker task each):
+
+* the engagement metrics (:data:`~drivetrain_ctrl.sim.metrics.METRICS`) and pass/fail against
+  the stated criteria (:data:`CRITERIA`): lock-up within the scenario's horizon, no engine
+  stall, peak jerk ``<=`` :data:`JERK_LIMIT_M_S3`, and on a grade roll-back ``<=``
+  :data:`ROLLBACK_LIMIT_M`;
+* the time responses on a common grid of :data:`N_SERIES` points over the scenario's horizon
+  (the run re-sampled there by :meth:`SimulationResult.sample`): engine and primary-shaft speed,
+  pedal (actuator position x_c), clutch torque and vehicle acceleration;
+* the linear figures of the clutch slip loop at the scenario's slip operating point
+  (:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`: the run
+  :data:`~drivetrain_ctrl.linear.operating_point.SLIP_DELAY_S` after the controller start):
+  gain, phase, delay and disk margins, Ms, Mt, bandwidth, closed-loop stability
+  (:func:`~drivetrain_ctrl.linear.margins.loop_margins` of
+  :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`). In lock mode the clutch loop is open
+  (x_c does not change the transmitted torque of a stuck clutch): no margins, said so.
+* **linear against nonlinear**: the linear slip loop *predicts a good engagement* when its
+  closed loop is stable; the switching plant *engages well* when the run ends ``ok``, locks up
+  within the horizon and the engine does not stall. The two **disagree** when these differ. The
+  cause is named from what the run did after the slip point and the linear model cannot:
+  *lock-up* (the clutch sticks: the slip loop ceases to exist), *sign switch* (the slip changes
+  sign: law (6)'s sign block switches branch), *saturation* (the pedal reaches a stroke limit)
+  and *operating-point drift* (the slip speed moves by more than :data:`DRIFT_THRESHOLD` of its
+  value within :data:`DRIFT_WINDOW_S` after the slip point: the slip point is no equilibrium).
+
+Per controller: the nominal linear figures are those on :data:`NOMINAL_SCENARIO` (run in
+addition when it is not among the scenarios) with the Bode data of L and S on
+:data:`BODE_GRID_RAD_S`; where the controller file records its design (``[design.achieved]``:
+the worst case over the design's plant set, checked by
+:func:`~drivetrain_ctrl.design.checks.check_loop` when it was designed), those figures are
+carried into ``data`` as recorded (the design layer is a peer of this one: nothing is
+recomputed here).
+
+Bad input never stops the others: an unknown controller or scenario, a controller file that
+does not load, an open-loop scenario, or a controller whose nominal slip loop is unstable is
+listed in ``data["invalid"]`` (with the reason) and left out of the ranking; only a comparison
+with no valid controller (or no valid scenario) raises :class:`CompareError`.
+
+The verdict ranks the valid controllers by the number of criteria passed (more first), then by
+the weighted score (lower first): for each score key of :data:`WEIGHTS` and each scenario, the
+controller's value divided by the best (smallest) value of the valid controllers there, capped
+at :data:`RATIO_CAP` (an undefined value counts as the cap); the score is the weighted mean
+over keys of the mean over scenarios (1.0: best everywhere).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import control
+import numpy as np
+
+from ..control.laws import ControllerError, ControllerSpec, load_controller
+from ..core.serialize import json_ready
+from ..core.units import RAD_S_TO_RPM
+from ..linear.clutch import clutch_loop
+from ..linear.margins import db_phase, loop_margins
+from ..linear.operating_point import SLIP_DELAY_S, slip_point_after_start
+from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
+from ..scenarios.scenario import Scenario, builtin_scenarios, load_scenario
+from ..sim.metrics import state_accelerations
+from ..sim.simulator import ZenoError
+from .case import MODELS, Case, CaseError, simulate_case
+
+__all__ = [
+    "BODE_GRID_RAD_S",
+    "CRITERIA",
+    "CompareError",
+    "Comparison",
+    "DEFAULT_CONTROLLERS",
+    "DRIFT_THRESHOLD",
+    "DRIFT_WINDOW_S",
+    "JERK_LIMIT_M_S3",
+    "NOMINAL_SCENARIO",
+    "N_SERIES",
+    "RATIO_CAP",
+    "ROLLBACK_LIMIT_M",
+    "SERIES",
+    "WEIGHTS",
+    "compare",
+    "compare_case",
+    "closed_loop_scenarios",
+]
+
+#: the controllers compared by default
+DEFAULT_CONTROLLERS: tuple[str, ...] = ("paper", "pi", "robust-pi", "hinf")
+#: the scenario whose slip point gives each controller's nominal linear figures
+NOMINAL_SCENARIO: str = "paper-start"
+#: the jerk criterion [m/s^3] (the project's: the shipped studies use the same bound)
+JERK_LIMIT_M_S3: float = 25.0
+#: the roll-back criterion [m] on a grade (the hill-start's stated limit)
+ROLLBACK_LIMIT_M: float = 0.05
+#: the criteria, by key: (metric, text)
+CRITERIA: dict[str, str] = {
+    "lockup": "locks up within the scenario's horizon (lockup_time_s defined)",
+    "no_stall": "the engine does not stall (engine_stalled false)",
+    "jerk": f"jerk_max_m_s3 <= {JERK_LIMIT_M_S3:g}",
+    "rollback": f"rollback_m <= {ROLLBACK_LIMIT_M:g} (on a grade only)",
+}
+#: points of the common time grid of the time responses
+N_SERIES: int = 300
+#: the time responses kept per run (name -> unit)
+SERIES: dict[str, str] = {
+    "omega_engine_rpm": "rpm",
+    "omega_primary_rpm": "rpm",
+    "pedal_mm": "mm",
+    "clutch_torque_Nm": "N m",
+    "vehicle_accel_m_s2": "m/s^2",
+}
+#: the frequency grid [rad/s] of the Bode data (below the Nyquist frequency of a 10-ms controller)
+BODE_GRID_RAD_S: tuple[float, ...] = tuple(float(w) for w in np.logspace(-1.0, 2.4, 200))
+#: operating-point drift: relative change of the slip speed ...
+DRIFT_THRESHOLD: float = 0.25
+#: ... within this long after the slip point [s]
+DRIFT_WINDOW_S: float = 0.3
+#: the default weights of the score keys (each: a metric, or ``ms`` the nominal slip loop's Ms)
+WEIGHTS: dict[str, float] = {
+    "engagement_time_s": 1.0,
+    "clutch_energy_J": 1.0,
+    "jerk_max_m_s3": 1.0,
+    "tracking_rms_rpm": 1.0,
+    "ms": 1.0,
+}
+#: the largest ratio to the best controller a score key counts with (also for an undefined value)
+RATIO_CAP: float = 3.0
+#: the linear figures kept per loop (from LoopMargins)
+_MARGIN_KEYS = (
+    "gain_margin_db",
+    "phase_margin_deg",
+    "delay_margin_s",
+    "disk_margin",
+    "disk_margin_db",
+    "disk_margin_deg",
+    "ms",
+    "mt",
+    "crossover_rad_s",
+    "bandwidth_rad_s",
+    "stable",
+)
+#: the design's worst-case figures read from a controller file's [design.achieved] table
+_DESIGN_KEYS = (
+    "n_plants",
+    "ms_max",
+    "mt_max",
+    "gain_margin_db_min",
+    "phase_margin_deg_min",
+    "disk_margin_db_min",
+    "crossover_rad_s_min",
+    "crossover_rad_s_max",
+    "all_stable",
+    "plant_set",
+)
+_LOCK_REASON = (
+    "clutch locked: x_c does not change the transmitted torque of a stuck clutch, so the clutch "
+    "loop is open (no margins)"
+)
+
+
+class CompareError(ValueError):
+    """A comparison that cannot run: invalid options, or no valid controller or scenario."""
+
+
+# -- one case, on a worker ------------------------------------------------------------------------
+def _series(run: Any, t_end: float, n: int) -> dict[str, Any]:
+    """The time responses of :data:`SERIES` on ``n`` points over [0, t_end] (within the run)."""
+    res = run.result
+    t_last = float(res.t_last)
+    grid = np.linspace(float(res.t0), t_end, n)
+    grid = grid[grid <= t_last]
+    s = res.sample(grid)
+    model = s.model
+    names = model.state_names
+    iv = names.index("v_vehicle")
+    right, _ = state_accelerations(s)
+    ic = [c.name for c in model.chain.couplings].index("clutch")
+    ip = model.input_names.index("pedal")
+    cols = {
+        "t_s": s.t,
+        "omega_engine_rpm": s.state("omega_engine") * RAD_S_TO_RPM,
+        "omega_primary_rpm": s.state("omega_primary") * RAD_S_TO_RPM,
+        "pedal_mm": np.asarray(s.u)[:, ip] * 1e3,
+        "clutch_torque_Nm": s.coupling_torques()[:, ic],
+        "vehicle_accel_m_s2": right[:, iv],
+    }
+    return {k: np.asarray(v, dtype=float).tolist() for k, v in cols.items()}
+
+
+def _linear(run: Any, bode: bool) -> dict[str, Any]:
+    """The slip loop at the run's slip point: margins (and the Bode data of L and S)."""
+    out: dict[str, Any] = {"slip": None, "slip_reason": None, "lock_reason": _LOCK_REASON}
+    try:
+        op = slip_point_after_start(run.result, run.drivetrain, run.scenario.start_time)
+        cl = clutch_loop(op, run.controller)
+        lm = loop_margins(cl.L).to_dict()
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        out["slip_reason"] = f"no slip loop: {exc}"
+        return out
+    slip = {k: lm.get(k) for k in _MARGIN_KEYS}
+    slip["reasons"] = lm.get("reasons") or {}
+    slip["operating_point"] = {
+        "t_s": float(op.t or 0.0),
+        "clutch_mode": op.clutch_mode,
+        "slip_speed_rad_s": op.state("omega_engine") - op.state(_driven(run)),
+        "omega_engine_rpm": op.state("omega_engine") * RAD_S_TO_RPM,
+        "pedal_m": op.input("pedal"),
+    }
+    poles = [complex(p["real"], p["imag"]) for p in lm.get("closed_loop_poles", [])]
+    slip["closed_loop_poles"] = [[p.real, p.imag] for p in poles]
+    if bode:
+        w = np.asarray(BODE_GRID_RAD_S)
+        hL = control.frequency_response(cl.L, w).complex
+        hS = control.frequency_response(cl.S, w).complex
+        dbL, phL = db_phase(hL)
+        dbS, phS = db_phase(hS)
+        bd = {"omega_rad_s": w, "L_db": dbL, "L_deg": phL, "S_db": dbS, "S_deg": phS}
+        slip["bode"] = {k: np.asarray(v, dtype=float).tolist() for k, v in bd.items()}
+    out["slip"] = slip
+    return out
+
+
+def _driven(run: Any) -> str:
+    names = run.result.model.state_names
+    return "omega_disc" if "omega_disc" in names else "omega_primary"
+
+
+def _observed(run: Any, t_op: float | None) -> dict[str, Any]:
+    """What the run did after the slip point that the linear slip loop cannot describe."""
+    res = run.result
+    t = np.asarray(res.t)
+    after = t >= (t_op if t_op is not None else run.scenario.start_time)
+    modes = np.asarray(res.mode_series("clutch"))
+    m_after = modes[after]
+    first = str(m_after[0]) if m_after.size else ""
+    other = {"slip+": "slip-", "slip-": "slip+"}.get(first)
+    lock_t = run.metrics.get("lockup_time_s")
+    act = run.drivetrain.params.actuator
+    ip = res.model.input_names.index("pedal")
+    pedal = np.asarray(res.u)[after, ip]
+    tol = 1e-9
+    sat = bool(pedal.size) and bool(
+        np.any(pedal <= act.x_min + tol) or np.any(pedal >= act.x_max - tol)
+    )
+    drift: float | None = None
+    if t_op is not None:
+        slip = res.state("omega_engine") - res.state(_driven(run))
+        t1 = min(t_op + DRIFT_WINDOW_S, float(t[-1]))
+        s0, s1 = np.interp([t_op, t1], t, slip)
+        drift = abs(float(s1) - float(s0)) / max(abs(float(s0)), 1e-9)
+    return {
+        "lock_up_s": lock_t,
+        "sign_switch": bool(other is not None and other in set(m_after.tolist())),
+        "saturation": sat,
+        "drift_rel": drift,
+        "drift": bool(drift is not None and drift > DRIFT_THRESHOLD),
+    }
+
+
+def compare_case(
+    controller: ControllerSpec,
+    scenario: Scenario,
+    params: DrivetrainParams,
+    model: str,
+    *,
+    t_end: float | None = None,
+    n_series: int = N_SERIES,
+    bode: bool = False,
+) -> dict[str, Any]:
+    """One controller on one scenario (runs on a worker; picklable arguments): the case's
+    metrics, time responses, slip-loop figures and what the run did after the slip point;
+    ``status`` ``failed`` with ``error`` when the case cannot run (nothing raised)."""
+    out: dict[str, Any] = {"controller": controller.name, "scenario": scenario.name}
+    case = Case(scenario=scenario, params=params, model=model, controller=controller, t_end=t_end)
+    try:
+        run = simulate_case(case)
+    except (CaseError, ZenoError, RuntimeError) as exc:
+        out.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+        return out
+    horizon = float(t_end if t_end is not None else scenario.t_end)
+    lin = _linear(run, bode)
+    t_op = lin["slip"]["operating_point"]["t_s"] if lin["slip"] is not None else None
+    out.update(
+        status=str(run.metrics.get("status")),
+        error=None,
+        horizon_s=horizon,
+        metrics=run.metrics,
+        series=_series(run, horizon, n_series),
+        linear=lin,
+        observed=_observed(run, t_op),
+    )
+    return out
+
+
+# -- judging ---------------------------------------------------------------------------------------
+def _criteria(rec: Mapping[str, Any], scenario: Scenario) -> dict[str, bool | None]:
+    """Pass/fail of :data:`CRITERIA` for one run (None: the criterion does not apply)."""
+    m = rec.get("metrics") or {}
+    ok = rec.get("status") == "ok"
+    lock = m.get("lockup_time_s")
+    jerk = m.get("jerk_max_m_s3")
+    out: dict[str, bool | None] = {
+        "lockup": ok and lock is not None and lock <= rec.get("horizon_s", math.inf),
+        "no_stall": ok and m.get("engine_stalled") is False,
+        "jerk": ok and jerk is not None and jerk <= JERK_LIMIT_M_S3,
+        "rollback": None,
+    }
+    if scenario.slope != 0.0:
+        rb = m.get("rollback_m")
+        out["rollback"] = ok and rb is not None and rb <= ROLLBACK_LIMIT_M
+    return out
+
+
+def _agreement(rec: Mapping[str, Any], crit: Mapping[str, bool | None]) -> dict[str, Any]:
+    """Linear prediction against the switching plant (module docstring)."""
+    lin = (rec.get("linear") or {}).get("slip")
+    if lin is None or lin.get("stable") is None:
+        why = (rec.get("linear") or {}).get("slip_reason") or "no stability verdict"
+        return {"disagree": None, "causes": [], "statement": f"no linear prediction: {why}."}
+    predicts = bool(lin["stable"])
+    engages = bool(crit["lockup"]) and bool(crit["no_stall"])
+    obs = rec.get("observed") or {}
+    causes = []
+    if obs.get("lock_up_s") is not None:
+        causes.append(f"lock-up at {obs['lock_up_s']:.4g} s")
+    if obs.get("sign_switch"):
+        causes.append("sign switch of the slip")
+    if obs.get("saturation"):
+        causes.append("saturation at a stroke limit")
+    if obs.get("drift"):
+        causes.append(
+            f"operating-point drift ({100 * obs['drift_rel']:.0f} % of the slip speed in "
+            f"{DRIFT_WINDOW_S:g} s)"
+        )
+    pred = "stable (a good engagement)" if predicts else "unstable"
+    did = "engages (locks up, no stall)" if engages else "does not engage well"
+    disagree = predicts != engages
+    stmt = f"linear slip loop {pred}; the switching plant {did}"
+    if disagree:
+        stmt += ": they disagree; seen in the run: " + ("; ".join(causes) or "no mode change")
+    else:
+        stmt += ": they agree"
+    return {
+        "disagree": disagree,
+        "linear_stable": predicts,
+        "nonlinear_engages": engages,
+        "causes": causes if disagree else [],
+        "statement": stmt + ".",
+    }
+
+
+def _score(
+    valid: Sequence[str],
+    scenarios: Sequence[str],
+    runs: Mapping[tuple[str, str], Mapping[str, Any]],
+    nominal: Mapping[str, Any],
+    weights: Mapping[str, float],
+) -> dict[str, dict[str, Any]]:
+    """Per controller: the mean capped ratio to the best of each score key, and the score."""
+
+    def value(c: str, s: str | None, key: str) -> float | None:
+        if key == "ms":
+            slip = (nominal.get(c) or {}).get("slip") or {}
+            v = slip.get("ms")
+        else:
+            v = ((runs.get((c, s or "")) or {}).get("metrics") or {}).get(key)
+        return float(v) if v is not None and math.isfinite(float(v)) else None
+
+    out: dict[str, dict[str, Any]] = {c: {"ratios": {}} for c in valid}
+    for key in weights:
+        places: Sequence[str | None] = [None] if key == "ms" else list(scenarios)
+        for c in valid:
+            out[c]["ratios"][key] = []
+        for s in places:
+            vals = {c: value(c, s, key) for c in valid}
+            best = min((v for v in vals.values() if v is not None and v > 0), default=None)
+            for c in valid:
+                v = vals[c]
+                if v is None or best is None:
+                    r = RATIO_CAP if v is None else 1.0
+                else:
+                    r = min(RATIO_CAP, max(v, best) / best)
+                out[c]["ratios"][key].append(r)
+    total = sum(weights.values())
+    for c in valid:
+        means = {k: float(np.mean(v)) for k, v in out[c]["ratios"].items()}
+        out[c]["mean_ratio"] = means
+        out[c]["score"] = sum(weights[k] * means[k] for k in weights) / total
+        del out[c]["ratios"]
+    return out
+
+
+def _verdict(
+    valid: Sequence[str],
+    scenarios: Sequence[str],
+    runs: Mapping[tuple[str, str], Mapping[str, Any]],
+    nominal: Mapping[str, Any],
+    weights: Mapping[str, float],
+) -> dict[str, Any]:
+    scores = _score(valid, scenarios, runs, nominal, weights)
+    rows = []
+    for c in valid:
+        passed = applicable = 0
+        failed: list[str] = []
+        for s in scenarios:
+            for k, v in (runs[(c, s)].get("criteria") or {}).items():
+                if v is None:
+                    continue
+                applicable += 1
+                passed += bool(v)
+                if not v:
+                    failed.append(f"{k} on {s}")
+        rows.append(
+            {
+                "controller": c,
+                "criteria_passed": passed,
+                "criteria_applicable": applicable,
+                "failed": failed,
+                "score": scores[c]["score"],
+                "mean_ratio": scores[c]["mean_ratio"],
+            }
+        )
+    rows.sort(key=lambda r: (-r["criteria_passed"], r["score"], r["controller"]))
+    reasoning = []
+    for i, r in enumerate(rows):
+        r["rank"] = i + 1
+        terms = " + ".join(f"{weights[k]:g} x {r['mean_ratio'][k]:.3f} ({k})" for k in weights)
+        line = (
+            f"#{i + 1} {r['controller']}: {r['criteria_passed']}/{r['criteria_applicable']} "
+            f"criteria passed"
+            + (f" (failed: {', '.join(r['failed'])})" if r["failed"] else "")
+            + f"; score {r['score']:.3f} = ({terms}) / {sum(weights.values()):g}"
+        )
+        if i > 0:
+            p = rows[i - 1]
+            if p["criteria_passed"] > r["criteria_passed"]:
+                line += f"; below {p['controller']}: fewer criteria passed"
+            elif p["score"] < r["score"]:
+                line += f"; below {p['controller']}: same criteria passed, higher score"
+            else:
+                line += f"; below {p['controller']}: tie, by name"
+        reasoning.append(line)
+    return {"ranking": rows, "reasoning": reasoning}
+
+
+# -- the comparison --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Comparison:
+    """What :func:`compare` found: ``data`` (JSON-ready, deterministic; module docstring),
+    ``wall_s`` [s] and ``workers`` (how it ran: not part of ``data``)."""
+
+    data: dict[str, Any]
+    wall_s: float
+    workers: int
+
+    @property
+    def ranking(self) -> list[str]:
+        """The valid controllers, best first."""
+        return [r["controller"] for r in self.data["verdict"]["ranking"]]
+
+    @property
+    def problems(self) -> list[str]:
+        """One line per controller or scenario left out, with the reason."""
+        return [f"{p['kind']} {p['name']!r}: {p['reason']}" for p in self.data["invalid"]]
+
+    def plot(self, out: str | Path | None = None) -> Any:
+        """The figures (:func:`~drivetrain_ctrl.reporting.compare_report.compare_figures`), or,
+        with ``out``, the report written there (compare.html, compare.pdf, data.json)."""
+        from ..reporting.compare_report import compare_figures, write_compare_report
+
+        if out is None:
+            return compare_figures(self.data)
+        return write_compare_report(self.data, out)
+
+
+def closed_loop_scenarios(params: DrivetrainParams | None = None) -> list[str]:
+    """The built-in scenarios that need a controller (``--scenarios all``), in their order."""
+    return [n for n, s in builtin_scenarios(params).items() if s.needs_controller]
+
+
+def _split(v: str | Sequence[str | Path] | None, what: str) -> list[str | Path]:
+    if v is None:
+        return []
+    if isinstance(v, str):
+        items: list[str | Path] = [x.strip() for x in v.split(",") if x.strip()]
+    elif isinstance(v, Sequence) and all(isinstance(x, str | Path) for x in v):
+        items = list(v)
+    else:
+        raise CompareError(f"{what} = {v!r}: give names or files, a list or comma-separated")
+    if not items:
+        raise CompareError(f"{what} = {v!r}: empty")
+    return items
+
+
+def _check_weights(weights: Mapping[str, float] | None) -> dict[str, float]:
+    w = dict(WEIGHTS)
+    if weights is None:
+        return w
+    if not isinstance(weights, Mapping):
+        raise CompareError(f"weights = {weights!r}: must map score keys to numbers")
+    for k, v in weights.items():
+        if k not in WEIGHTS:
+            raise CompareError(f"weights: unknown key {k!r}; known: {', '.join(WEIGHTS)}")
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (v >= 0 and v < math.inf):
+            raise CompareError(f"weights[{k!r}] = {v!r}: must be a finite number >= 0")
+        w[k] = float(v)
+    if not sum(w.values()) > 0:
+        raise CompareError(f"weights = {w!r}: at least one must be > 0")
+    return w
+
+
+def _run_all(
+    tasks: Sequence[tuple[Any, ...]],
+    *,
+    client: Any,
+    workers: int | None,
+    progress: bool,
+    run: Callable[..., dict[str, Any]],
+) -> tuple[list[dict[str, Any]], int]:
+    """Every task on Dask (runner's set-up: a local cluster of single-threaded worker processes
+    with the kernel warm-up plugin, or ``client``), with a progress bar; results in task order."""
+    from dask.distributed import Client, LocalCluster, as_completed
+    from tqdm import tqdm
+
+    from ..sim.warmup import ensure_compiled
+    from .runner import KernelWarmup
+
+    ensure_compiled()
+    cluster = None
+    own = client is None
+    if own:
+        cluster = LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+        )
+        client = Client(cluster)
+    try:
+        client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        futures = [
+            client.submit(run, *args, **kw, pure=False, key=f"compare-{i}-{args[0].name}")
+            for i, (args, kw) in enumerate(tasks)
+        ]
+        index = {f.key: i for i, f in enumerate(futures)}
+        out: list[dict[str, Any]] = [{} for _ in futures]
+        with tqdm(total=len(futures), unit="run", disable=not progress, dynamic_ncols=True) as bar:
+            for fut in as_completed(futures):
+                out[index[fut.key]] = fut.result()
+                bar.update(1)
+                fut.release()
+    finally:
+        if own:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+    return out, n_workers
+
+
+def compare(
+    *,
+    controllers: str | Sequence[str | Path] = DEFAULT_CONTROLLERS,
+    scenarios: str | Sequence[str | Path] = "all",
+    model: str = "full",
+    params: str | Path | DrivetrainParams = DEFAULT_SET,
+    weights: Mapping[str, float] | None = None,
+    t_end: float | None = None,
+    n_series: int = N_SERIES,
+    workers: int | None = None,
+    client: Any = None,
+    progress: bool = True,
+    warn: Callable[[str], None] | None = None,
+) -> Comparison:
+    """Compare ``controllers`` (built-in names or controller TOML files; a list or
+    comma-separated) on ``scenarios`` (``"all"``: every built-in closed-loop scenario; or names /
+    scenario files) on ``model`` (``full`` / ``reduced``) with parameter set ``params`` (name,
+    TOML file or set; each scenario's own overrides applied). ``weights``: score key -> weight
+    (:data:`WEIGHTS`; missing keys keep their default). ``t_end`` [s]: a shorter horizon for every
+    scenario (None: each scenario's own). ``n_series``: points of the time responses.
+    ``workers``: local worker processes (default: the cores), or ``client``: a
+    ``dask.distributed.Client`` to run on (left open). ``progress``: a progress bar on stderr.
+    ``warn``: called with one line per controller or scenario left out (e.g. print to stderr).
+    Returns a :class:`Comparison`; raises :class:`CompareError` for invalid options or when no
+    controller (or no scenario) is valid."""
+    tic = time.perf_counter()
+    if model not in MODELS:
+        raise CompareError(f"model = {model!r}: must be one of {MODELS}")
+    w = _check_weights(weights)
+    if t_end is not None and (
+        isinstance(t_end, bool) or not isinstance(t_end, int | float) or not 0 < t_end < math.inf
+    ):
+        raise CompareError(f"t_end = {t_end!r}: must be a finite number > 0 [s] (or None)")
+    if isinstance(n_series, bool) or not isinstance(n_series, int) or n_series < 2:
+        raise CompareError(f"n_series = {n_series!r}: must be an integer >= 2")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise CompareError(f"workers = {workers!r}: must be an integer >= 1")
+    if client is not None and workers is not None:
+        raise CompareError("client: give a client or workers, not both")
+    try:
+        p = params if isinstance(params, DrivetrainParams) else load_params(params)
+    except FileNotFoundError as exc:
+        raise CompareError(f"params = {str(params)!r}: file not found: {exc.filename}") from None
+    except (ValueError, OSError, TypeError) as exc:
+        raise CompareError(f"params = {params!r}: {exc}") from None
+    invalid: list[dict[str, str]] = []
+
+    def bad(kind: str, name: Any, reason: str) -> None:
+        invalid.append({"kind": kind, "name": str(name), "reason": reason})
+        if warn is not None:
+            warn(f"{kind} {str(name)!r} left out: {reason}")
+
+    specs: dict[str, ControllerSpec] = {}
+    for c in _split(controllers, "controllers"):
+        try:
+            spec = load_controller(c)
+        except (ControllerError, OSError) as exc:
+            bad("controller", c, f"does not load: {exc}")
+            continue
+        if spec.name in specs:
+            bad("controller", c, f"a second controller named {spec.name!r} (names must differ)")
+            continue
+        specs[spec.name] = spec
+    scen_names = closed_loop_scenarios(p) if scenarios == "all" else _split(scenarios, "scenarios")
+    scens: dict[str, Scenario] = {}
+    for s in scen_names:
+        try:
+            sc = load_scenario(s, params=p)
+        except (ValueError, OSError) as exc:
+            bad("scenario", s, f"does not load: {exc}")
+            continue
+        if not sc.needs_controller:
+            bad("scenario", s, "open loop (it gives the pedal, not an engine-speed reference)")
+            continue
+        if sc.name in scens:
+            bad("scenario", s, f"a second scenario named {sc.name!r}")
+            continue
+        scens[sc.name] = sc
+    if not specs:
+        raise CompareError(
+            "no valid controller to compare" + "".join(f"\n  {c}" for c in _lines(invalid))
+        )
+    if not scens:
+        raise CompareError(
+            "no valid scenario to compare on" + "".join(f"\n  {c}" for c in _lines(invalid))
+        )
+    nominal_sc = scens.get(NOMINAL_SCENARIO) or load_scenario(NOMINAL_SCENARIO, params=p)
+    tasks: list[tuple[Any, ...]] = []
+    keys: list[tuple[str, str, bool]] = []  # (controller, scenario, nominal-only)
+    for c, spec in specs.items():
+        for s, sc in scens.items():
+            tasks.append(
+                (
+                    (spec, sc, p, model),
+                    {"t_end": t_end, "n_series": n_series, "bode": s == NOMINAL_SCENARIO},
+                )
+            )
+            keys.append((c, s, False))
+        if NOMINAL_SCENARIO not in scens:
+            tasks.append(((spec, nominal_sc, p, model), {"t_end": t_end, "bode": True}))
+            keys.append((c, NOMINAL_SCENARIO, True))
+    results, n_workers = _run_all(
+        tasks, client=client, workers=workers, progress=progress, run=compare_case
+    )
+    runs: dict[tuple[str, str], dict[str, Any]] = {}
+    nominal: dict[str, Any] = {}
+    for (c, s, only), rec in zip(keys, results, strict=True):
+        if s == NOMINAL_SCENARIO:
+            nominal[c] = dict(rec.get("linear") or {"slip": None, "slip_reason": rec.get("error")})
+            nominal[c]["status"] = rec.get("status")
+        if only:
+            continue
+        rec["criteria"] = _criteria(rec, scens[s])
+        rec["linear_vs_nonlinear"] = _agreement(rec, rec["criteria"])
+        runs[(c, s)] = rec
+    valid = []
+    for c in specs:
+        slip = (nominal.get(c) or {}).get("slip")
+        if slip is not None and slip.get("stable") is False:
+            bad("controller", c, f"unstable on the nominal slip loop ({NOMINAL_SCENARIO})")
+        else:
+            valid.append(c)
+    if not valid:
+        raise CompareError(
+            "no valid controller to compare" + "".join(f"\n  {c}" for c in _lines(invalid))
+        )
+    design: dict[str, Any] = {}
+    for c, spec in specs.items():
+        ach = ((spec.to_dict().get("design") or {}).get("achieved")) or None
+        if ach:
+            design[c] = {k: ach.get(k) for k in _DESIGN_KEYS}
+            design[c]["method"] = (spec.to_dict().get("design") or {}).get("method")
+        else:
+            design[c] = None
+    data: dict[str, Any] = {
+        "format": "drivetrain_ctrl comparison 1",
+        "inputs": {
+            "controllers": list(specs),
+            "controller_specs": {c: s.to_dict() for c, s in specs.items()},
+            "scenarios": list(scens),
+            "scenario_descriptions": {s: sc.description for s, sc in scens.items()},
+            "model": model,
+            "params": p.name,
+            "t_end_s": t_end,
+            "weights": w,
+            "n_series": n_series,
+        },
+        "definitions": {
+            "criteria": dict(CRITERIA),
+            "jerk_limit_m_s3": JERK_LIMIT_M_S3,
+            "rollback_limit_m": ROLLBACK_LIMIT_M,
+            "nominal_scenario": NOMINAL_SCENARIO,
+            "slip_delay_s": SLIP_DELAY_S,
+            "drift_threshold": DRIFT_THRESHOLD,
+            "drift_window_s": DRIFT_WINDOW_S,
+            "ratio_cap": RATIO_CAP,
+            "series_units": dict(SERIES),
+            "disagree": (
+                "the linear slip loop at the scenario's slip point is closed-loop stable "
+                "(predicts a good engagement) while the run does not lock up within the horizon "
+                "or stalls the engine, or the other way round"
+            ),
+        },
+        "invalid": invalid,
+        "valid": valid,
+        "nominal_linear": nominal,
+        "design": design,
+        "runs": {c: {s: runs[(c, s)] for s in scens} for c in specs},
+        "verdict": _verdict(valid, list(scens), runs, nominal, w),
+    }
+    return Comparison(json_ready(data), time.perf_counter() - tic, n_workers)
+
+
+def _lines(invalid: Sequence[Mapping[str, str]]) -> list[str]:
+    return [f"{p['kind']} {p['name']!r}: {p['reason']}" for p in invalid]
