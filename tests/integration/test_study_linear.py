@@ -59,7 +59,7 @@ def _rows(study: Study) -> list[dict[str, Any]]:
     df = sample_table(study)
     items, cases = [], []
     for i in range(study.samples):
-        vals = {k: float(v) for k, v in df.iloc[i].items()}
+        vals = {str(k): float(v) for k, v in df.iloc[i].items()}
         for c in study.controller_names:
             case = study.case(i, vals, c, 0)
             items.append((case.label, i, c, study.scenario_names[0], vals))
@@ -105,7 +105,7 @@ def test_a_rows_linear_figures_equal_a_direct_computation_at_its_parameters() ->
     for row in rows:
         assert row["status"] == "ok", row["error"]
         assert set(LINEAR_FIGURES) <= set(row) and "judder: closed form" in row["linear_note"]
-        vals = {k: float(v) for k, v in df.iloc[row["sample"]].items()}
+        vals = {str(k): float(v) for k, v in df.iloc[row["sample"]].items()}
         want = _direct(vals, row["controller"])
         for k, v in want.items():
             assert row[k] == json_ready(v), k  # the record's numbers are rounded so

@@ -48,7 +48,7 @@ def test_the_road_slope_is_a_study_parameter_and_changes_the_run(tmp_path: Path)
     df = sample_table(study)
     items, cases = [], []
     for i in range(study.samples):
-        vals = {k: float(v) for k, v in df.iloc[i].items()}
+        vals = {str(k): float(v) for k, v in df.iloc[i].items()}
         case = study.case(i, vals, "paper", 0)
         assert case.scenario_overrides == {"slope": vals["scenario.slope"]} and not case.overrides
         items.append((case.label, i, "paper", "paper-start", vals))
@@ -87,7 +87,7 @@ def test_scenario_parameters_are_checked_before_any_work() -> None:
     with pytest.raises(CaseError, match=r"unknown scenario field 'grade'"):
         Case(scenario="paper-start", controller="paper", scenario_overrides={"grade": 0.1})
     with pytest.raises(CaseError, match=r"scenario_overrides\.slope = 'x'"):
-        Case(scenario="paper-start", controller="paper", scenario_overrides={"slope": "x"})
+        Case(scenario="paper-start", controller="paper", scenario_overrides={"slope": "x"})  # type: ignore[dict-item]
 
 
 # -- one writer per folder --------------------------------------------------------------------
