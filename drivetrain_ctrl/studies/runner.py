@@ -20,8 +20,23 @@ uninterrupted one.
 The table: one row per ``key`` = ``s<sample>|<controller>|<scenario>`` with ``sample``,
 ``controller``, ``scenario``, the parameters ``param:<name>`` (SI units), ``status``
 (``ok``, ``failed`` or why the run stopped early), ``error``, the study's metrics (numbers as
-float64, a flag as 0/1, None as NaN; ``model``, ``status``, ``notes`` as text), one
+float64, a flag as 0/1, None as NaN; ``model``, ``status``, ``notes`` as text), with
+``study.linear`` the paired linear figures and ``linear_note`` (below), one
 ``pass:<criterion>`` column per criterion and ``pass`` (status ``ok`` and every criterion met).
+
+The paired linear figures (:data:`~drivetrain_ctrl.studies.case.LINEAR_FIGURES`, float64, NaN
+where undefined, the reason in the text column ``linear_note``), of the row's slip-mode clutch
+loop ``L = C P`` (controller, sign, rate limiter, actuator, clutch and engine, the driveline coupled
+in; :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`) linearised at the row's own run 0.3 s
+after the controller start
+(:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`), with the row's
+parameters and model: ``lin:gain_margin`` (a factor, not dB), ``lin:phase_margin_deg`` [deg],
+``lin:crossover_rad_s`` [rad/s], ``lin:disk_margin`` (alpha, skew 0), ``lin:Ms`` (max ``|S|``),
+``lin:stable`` (1/0), ``lin:mu_slope`` and ``lin:mu_slope_crit`` [s/rad] (the friction slope of
+mu/mu0 at the point and the judder threshold, < 0), ``lin:judder_margin`` = ``1 - mu'/mu'_crit``
+[-] and ``lin:t_s`` [s] (see :func:`~drivetrain_ctrl.studies.case.linear_figures`).
+
+One writer per folder: :func:`run_study` holds :func:`folder_lock` on ``OUT/.lock``.
 """
 
 from __future__ import annotations
