@@ -9,6 +9,7 @@ Subcommands::
     drivetrain-ctrl params list
     drivetrain-ctrl scenarios list
     drivetrain-ctrl study run STUDY.toml --out DIR [--workers N] [--scheduler ADDRESS]
+    drivetrain-ctrl study report DIR [--out OUT] [--worst N] [--no-resimulate]
     drivetrain-ctrl design pi|robust-pi|pid|hinf --spec NAME|SPEC.toml --out CONTROLLER.toml
                            [--name NAME] [--no-check]
     drivetrain-ctrl compare [--controllers paper,pi,robust-pi,hinf[,FILE.toml...]]
@@ -35,6 +36,8 @@ or scenario that cannot take part is named on stderr and in the report, the othe
 
 ``study run`` runs a robustness study file (:mod:`drivetrain_ctrl.studies.study`) on Dask into
 ``DIR/results/*.parquet`` and resumes an interrupted run (:mod:`drivetrain_ctrl.studies.runner`).
+``study report`` writes ``report.html``, ``report.pdf`` and ``data.json`` of a study folder
+into it (or ``--out``; :mod:`drivetrain_ctrl.reporting.study_report`).
 
 Exit codes: 0 success; 1 the simulation failed (e.g. Zeno) or an output could not be written;
 2 invalid command line or input (unknown scenario or parameter set, invalid or misspelt key in a
@@ -721,6 +724,22 @@ def _cmd_study_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study_report(args: argparse.Namespace) -> int:
+    from .reporting.study_report import StudyReportError, build_study_report
+
+    try:
+        rep = build_study_report(
+            args.folder, out=args.out, worst=args.worst, resimulate=not args.no_resimulate
+        )
+    except StudyReportError as exc:
+        raise InputError(_msg(exc)) from None
+    except OSError as exc:
+        raise RunError(f"cannot write the study report: {_msg(exc)}") from None
+    for f in rep.files:
+        print(f)
+    return 0
+
+
 def _weights(text: str) -> dict[str, float]:
     """``--weights KEY=W,...``: score key -> weight (checked by compare)."""
     out: dict[str, float] = {}
@@ -947,6 +966,22 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--chunk-size", type=_positive_int, default=None, help="runs per Dask task")
     sr.add_argument("--no-progress", action="store_true", help="no progress bar")
     sr.set_defaults(func=_cmd_study_run)
+    srp = stsub.add_parser(
+        "report",
+        help="report of a study folder: report.html, report.pdf, data.json",
+        description="Pass rates with confidence intervals, metric histograms and scatter plots, "
+        "parameter sensitivities, the worst runs re-simulated, linear vs nonlinear figures and "
+        "failure reasons of a study folder (drivetrain_ctrl.reporting.study_report).",
+    )
+    srp.add_argument("folder", help="the study folder (DIR of 'study run --out DIR')")
+    srp.add_argument("--out", type=_out_dir, default=None, help="output directory (default: DIR)")
+    srp.add_argument(
+        "--worst", type=int, default=2, help="worst runs per controller to re-simulate (default 2)"
+    )
+    srp.add_argument(
+        "--no-resimulate", action="store_true", help="do not re-simulate the worst runs"
+    )
+    srp.set_defaults(func=_cmd_study_report)
     return ap
 
 

@@ -8,16 +8,14 @@
 * ``report.html``: self-contained (figures embedded as base64 PNG);
 * ``report.pdf``: the same content drawn with matplotlib only (text pages, then the figures).
 
+The files are written by :mod:`drivetrain_ctrl.reporting.document` (shared with the study report).
+
 All figures are drawn from ``data`` only (:func:`make_figures`, in
 :mod:`drivetrain_ctrl.reporting.figures`), so ``Report.plot()`` needs no re-computation.
 """
 
 from __future__ import annotations
 
-import base64
-import html
-import io
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,6 +33,7 @@ from .controller_analysis import (
     _tf_text,
     analyse_controller,
 )
+from .document import html_page, pdf_blocks, write_data_json
 from .figures import report_figures, write_report_pdf
 
 __all__ = [
@@ -132,11 +131,7 @@ def render_report(data: dict[str, Any], out: str | Path) -> Report:
     figures). All figures are drawn from ``data`` only."""
     outp = Path(out)
     outp.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
-    files = []
-    fj = outp / "data.json"
-    fj.write_text(text, encoding="utf-8")
-    files.append(fj)
+    files = [write_data_json(data, outp / "data.json")]
     figs = make_figures(data)
     fh = outp / "report.html"
     fh.write_text(_html(data, figs), encoding="utf-8")
@@ -534,66 +529,27 @@ def _sections(
     return out
 
 
-def _png(fig: Any) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
 def _html(data: dict[str, Any], figs: dict[str, Any]) -> str:
     inp = data["inputs"]
-    e = html.escape
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        f"<title>Clutch controller report: {e(inp['controller_name'])}</title>",
-        "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-        "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #999;"
-        "padding:2px 6px;font-size:0.9em;text-align:left}img{max-width:100%}</style>",
-        "</head><body>",
-        f"<h1>Clutch controller report: {e(inp['controller_name'])} on the {e(inp['model'])} "
-        f"model, scenario {e(inp['scenario'])}</h1>",
-    ]
-    for title, paras, tables, fnames in _sections(data):
-        parts.append(f"<h2>{e(title)}</h2>")
-        parts += [f"<p>{e(p)}</p>" for p in paras]
-        for cap, rows in tables:
-            parts.append(f"<table><caption>{e(cap)}</caption>")
-            parts.append("<tr>" + "".join(f"<th>{e(c)}</th>" for c in rows[0]) + "</tr>")
-            for r in rows[1:]:
-                parts.append("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>")
-            parts.append("</table>")
-        for f in fnames:
-            parts.append(f'<img alt="{e(f)}" src="data:image/png;base64,{_png(figs[f])}">')
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    return html_page(
+        f"Clutch controller report: {inp['controller_name']}",
+        f"Clutch controller report: {inp['controller_name']} on the {inp['model']} model, "
+        f"scenario {inp['scenario']}",
+        _sections(data),
+        figs,
+    )
 
 
 def _pdf_blocks(data: dict[str, Any], figs: dict[str, Any]) -> list[tuple[Any, ...]]:
-    """The PDF's content in reading order: each section's text, tables and then its figures."""
+    """The PDF's content in reading order: each section's text, tables and then its figures
+    (:func:`~drivetrain_ctrl.reporting.document.pdf_blocks`)."""
     inp = data["inputs"]
-    blocks: list[tuple[Any, ...]] = [
-        (
-            "h1",
-            f"Clutch controller report: {inp['controller_name']} on the {inp['model']} model, "
-            f"scenario {inp['scenario']}",
-        )
-    ]
-    placed: list[str] = []
-    for title, paras, tables, fnames in _sections(data):
-        blocks.append(("h2", title))
-        blocks += [("p", p) for p in paras]
-        for cap, rows in tables:
-            blocks.append(("table", cap, rows))
-        for f in fnames:
-            if f not in placed:
-                blocks.append(("figure", figs[f]))
-                placed.append(f)
-    rest = [f for f in figs if f not in placed]
-    if rest:
-        blocks.append(("h2", "Other figures"))
-        blocks += [("figure", figs[f]) for f in rest]
-    return blocks
+    return pdf_blocks(
+        f"Clutch controller report: {inp['controller_name']} on the {inp['model']} model, "
+        f"scenario {inp['scenario']}",
+        _sections(data),
+        figs,
+    )
 
 
 def _pdf(data: dict[str, Any], figs: dict[str, Any], path: Path) -> None:
