@@ -456,7 +456,8 @@ def _sections(data: dict[str, Any]) -> list[Section]:
         "Limits: the samples are Monte Carlo, Latin hypercube or Sobol points, not a Saltelli "
         "design, so only first-order indices can be estimated: interactions between parameters "
         "and total-effect indices are not resolved; the estimate assumes independently drawn "
-        "parameters (true of the study's sampling) and scatters by about 1/sqrt(n / classes); "
+        "parameters (true of the study's sampling); for a parameter without influence it "
+        "scatters around 0 by about sqrt(2 (M - 1)) / n for n runs in M classes; "
         "rows with an undefined metric are left out, which biases a metric undefined in part "
         "of the space. Parameters are ranked by their largest S1 over the criteria's metrics.",
     ]

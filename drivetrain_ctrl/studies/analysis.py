@@ -21,7 +21,8 @@ wall times) holds every number behind every figure of the report
   epsilon-squared; see :func:`first_order_index`). The studies' samples are Monte Carlo, Latin
   hypercube or Sobol points, not a Saltelli design, so only first-order indices from given
   data apply: interactions are not resolved, the parameters must be drawn independently (they
-  are), and the estimate scatters by about 1/sqrt(n / bins).
+  are), and for a parameter without influence the estimate scatters around 0 by about
+  sqrt(2 (M - 1)) / n for n runs in M classes.
 * **Worst runs**: per controller the runs that miss their criteria the most (the largest
   relative violation ``(value - threshold) / |threshold|`` of any criterion; an undefined
   metric counts as the worst), re-simulated through
@@ -29,7 +30,8 @@ wall times) holds every number behind every figure of the report
   driven-plate speeds, clutch torque and vehicle acceleration are kept at 100 Hz.
 * **Linear versus nonlinear**: Spearman's correlation of every paired linear figure of the table
   (columns ``lin:<name>``: margins, Ms, judder margin) with the lock-up time, the peak jerk and
-  the pass flag; a table without ``lin:`` columns (a folder written before they existed) says so.
+  the pass flag, per group and over all runs; a table without ``lin:`` columns (a folder written
+  before they existed) says so.
 * **Failures**: the runs that did not finish, counted by reason (numbers in the messages
   replaced by ``#`` so that one cause is one line), and the runs missing each criterion.
 """
@@ -519,7 +521,8 @@ def _linear(
     ][:2]
     outcomes = [*dict.fromkeys(outcomes), "pass"]
     corr = []
-    for label, c, sc, mask in groups:
+    pooled = [("all runs", None, None, np.ones(len(table), dtype=bool))] if len(groups) > 1 else []
+    for label, c, sc, mask in [*groups, *pooled]:
         sub = table[mask]
         ok = (sub["status"] != "failed").to_numpy()
         per: dict[str, dict[str, Any]] = {}
@@ -542,7 +545,8 @@ def _linear(
     }
 
 
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+#: a number in a message (not the digits of a name such as k12_max)
+_NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 def _reason(status: str, error: Any) -> str:

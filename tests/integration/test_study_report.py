@@ -254,6 +254,15 @@ def test_lin_columns_are_correlated_with_the_nonlinear_outcomes(synth_lin: Path)
     assert e["spearman"] == pytest.approx(stats.spearmanr(x[ok], y[ok]).statistic, rel=1e-8)
     assert e["spearman"] == pytest.approx(-1.0)  # Ms rises with the capacity, jerk falls
     assert g["correlations"]["lin:judder_margin"]["lockup_time_s"]["n"] == int(ok.sum()) - 1
+    pooled = lin["groups"][-1]  # over every finished run of both controllers
+    done = df[df["status"] != "failed"]
+    x, y = done["lin:Ms"].to_numpy(), done["lockup_time_s"].to_numpy()
+    ok = np.isfinite(x) & np.isfinite(y)
+    assert pooled["group"] == "all runs" and len(lin["groups"]) == 3
+    assert pooled["correlations"]["lin:Ms"]["lockup_time_s"]["n"] == int(ok.sum())
+    assert pooled["correlations"]["lin:Ms"]["lockup_time_s"]["spearman"] == pytest.approx(
+        stats.spearmanr(x[ok], y[ok]).statistic, rel=1e-8
+    )
     assert "linear" in rep.plot()
     assert rep.data["points"]["lin"]["lin:Ms"][0] == pytest.approx(float(df["lin:Ms"].iloc[0]))
 
