@@ -394,3 +394,25 @@ def test_a_real_study_report_re_simulates_its_worst_runs(real: Path) -> None:
     assert g["correlations"]["lin:Ms"]["jerk_max_m_s3"]["spearman"] == pytest.approx(
         stats.spearmanr(x[ok], y[ok]).statistic, rel=1e-8
     )
+
+
+def test_a_study_that_cannot_be_rebuilt_is_reported_without_re_simulation(
+    synth: Path, tmp_path: Path
+) -> None:
+    import shutil
+
+    folder = tmp_path / "moved"
+    shutil.copytree(synth, folder)
+    meta = json.loads((folder / "study.json").read_text())
+    meta["study"]["controllers"] = ["paper", str(tmp_path / "gone.toml")]  # a file since moved
+    (folder / "study.json").write_text(json.dumps(meta))
+    d = analyse_study(folder, worst=1).data
+    assert d["study"]["criteria"] == ["lockup_time_s <= 2.6", "jerk_max_m_s3 <= 20"]
+    assert [r["controller"] for r in d["worst"]["rows"]] == ["paper", "pi"]
+    for r in d["worst"]["rows"]:
+        assert r["trace"] is None
+        assert r["resimulated"]["error"].startswith("not re-simulated: the study in study.json")
+        assert "gone.toml" in r["resimulated"]["error"]
+    # the rest is computed from the table as before
+    ref = analyse_study(synth, resimulate=False).data
+    assert d["pass_rates"] == ref["pass_rates"] and d["sensitivity"] == ref["sensitivity"]
