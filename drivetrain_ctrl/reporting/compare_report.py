@@ -32,7 +32,13 @@ from typing import Any
 
 from .figures import write_report_pdf
 
-__all__ = ["CompareReport", "compare_figures", "compare_sections", "write_compare_report"]
+__all__ = [
+    "CompareReport",
+    "compare_figures",
+    "compare_sections",
+    "data_json_text",
+    "write_compare_report",
+]
 
 #: the rows of a time-response figure: (series key, axis label)
 _ROWS: tuple[tuple[str, str], ...] = (
@@ -130,7 +136,8 @@ def compare_figures(data: Mapping[str, Any]) -> dict[str, Any]:
         axes[0].legend(fontsize=8, loc="best")
     axes[0].set_title(
         f"Slip mode: loop L and sensitivity S at the nominal slip point "
-        f"({data['definitions']['nominal_scenario']}, {data['inputs']['model']} model)"
+        f"({data['definitions']['nominal_scenario']}, {data['inputs']['model']} model)",
+        fontsize=10,
     )
     figs["bode_slip"] = fig
     for s in data["inputs"]["scenarios"]:
@@ -395,13 +402,18 @@ class CompareReport:
         return (self.html, self.pdf, self.data)
 
 
+def data_json_text(data: Mapping[str, Any]) -> str:
+    """The text of ``data.json``: keys sorted, indent 1, NaN refused (the same data, the same
+    bytes)."""
+    return json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
+
+
 def write_compare_report(data: Mapping[str, Any], out: str | Path) -> CompareReport:
     """Write ``compare.html``, ``compare.pdf`` and ``data.json`` of comparison ``data`` into
     folder ``out`` (created); returns their paths."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    text = json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
-    (out / "data.json").write_text(text, encoding="utf-8")
+    (out / "data.json").write_text(data_json_text(data), encoding="utf-8")
     figs = compare_figures(data)
     sections = compare_sections(data)
     (out / "compare.html").write_text(_html(data, sections, figs), encoding="utf-8")
