@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import itertools
 import json
 import math
 import os
@@ -52,7 +53,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 from dask.distributed import WorkerPlugin
 
@@ -335,6 +335,32 @@ def folder_lock(out: Path) -> Iterator[Path]:
         os.close(fd)  # releases the lock
 
 
+#: chunks in flight per worker (submitted ahead of the finished ones)
+WINDOW = 4
+
+
+def _chunked(items: Iterator[Any], size: int) -> Iterator[list[Any]]:
+    """``items`` in lists of ``size`` (the last one shorter), made as they are asked for."""
+    while True:
+        ch = list(itertools.islice(items, size))
+        if not ch:
+            return
+        yield ch
+
+
+def _counts(out: Path) -> tuple[int, int, int]:
+    """(rows, failed rows, rows that pass) of the table in ``out``, reading only those columns."""
+    import pyarrow.parquet as pq
+
+    n = failed = passed = 0
+    for f in _chunk_files(out):
+        t = pq.read_table(f, columns=["status", "pass"])
+        n += t.num_rows
+        failed += sum(v == "failed" for v in t.column("status").to_pylist())
+        passed += sum(bool(v) for v in t.column("pass").to_pylist())
+    return n, failed, passed
+
+
 def _items(study: Study, samples: pd.DataFrame, missing: set[str]) -> Iterator[Any]:
     names = list(samples.columns)
     values = samples.to_numpy()
@@ -414,11 +440,11 @@ def _run_locked(
     samples = _prepare_folder(study, out)
     all_keys = study.keys()
     missing = set(all_keys) - _present_keys(out)
-    todo = list(_items(study, samples, missing))
+    n_todo = len(missing)
     schema = _schema(study)
     n_chunks = 0
     n_workers = 0
-    if todo:
+    if n_todo:
         from dask.distributed import Client, LocalCluster, as_completed
 
         from ..sim.warmup import ensure_compiled
@@ -440,10 +466,14 @@ def _run_locked(
         try:
             client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
             n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-            size = chunk_size or max(1, min(32, math.ceil(len(todo) / (4 * n_workers))))
-            chunks = [todo[i : i + size] for i in range(0, len(todo), size)]
-            futures = [
-                client.submit(
+            size = chunk_size or max(1, min(32, math.ceil(n_todo / (4 * n_workers))))
+            # the chunks are made and submitted as the earlier ones finish: at most WINDOW per
+            # worker in flight, so the driver holds the cases and rows of a few chunks only,
+            # however many rows the study has
+            chunks = _chunked(_items(study, samples, missing), size)
+
+            def submit(ch: list[Any]) -> Any:
+                return client.submit(
                     run_chunk,
                     [it for it, _ in ch],
                     [c for _, c in ch],
@@ -454,32 +484,36 @@ def _run_locked(
                     key=_chunk_name([it[0] for it, _ in ch]).removesuffix(".parquet"),
                     pure=False,
                 )
-                for ch in chunks
-            ]
+
+            pending = as_completed()
+            for ch in itertools.islice(chunks, WINDOW * n_workers):
+                pending.add(submit(ch))
             failed = 0
-            with _progress(len(todo), progress) as bar:
-                for fut in as_completed(futures):
+            with _progress(n_todo, progress) as bar:
+                for fut in pending:
                     rows = fut.result()
+                    fut.release()
+                    nxt = next(chunks, None)
+                    if nxt is not None:
+                        pending.add(submit(nxt))
                     _write_chunk(out / RESULTS, rows, schema)
                     n_chunks += 1
                     failed += sum(r["status"] == "failed" for r in rows)
                     remaining = bar.total - bar.n - len(rows)
                     bar.set_postfix(failed=failed, remaining=remaining, refresh=False)
                     bar.update(len(rows))
-                    fut.release()
+                    del rows, fut
         finally:
             if own_client:
                 client.close()
             if cluster is not None:
                 cluster.close()
-    table = read_results(out) if _chunk_files(out) else pd.DataFrame(columns=list(ID_COLUMNS))
-    n_failed = int(np.sum(table["status"] == "failed")) if len(table) else 0
-    n_pass = int(np.sum(table["pass"])) if len(table) else 0
+    n_rows, n_failed, n_pass = _counts(out)
     return StudyRun(
         out=out,
         expected=len(all_keys),
-        rows=len(table),
-        computed=len(todo),
+        rows=n_rows,
+        computed=n_todo,
         skipped=len(all_keys) - len(missing),
         failed=n_failed,
         passed=n_pass,
