@@ -461,11 +461,13 @@ def _verdict(
 @dataclass(frozen=True)
 class Comparison:
     """What :func:`compare` found: ``data`` (JSON-ready, deterministic; module docstring),
-    ``wall_s`` [s] and ``workers`` (how it ran: not part of ``data``)."""
+    ``wall_s`` [s], ``workers`` and ``timing`` (``startup_s``: kernels, cluster and its warm-up;
+    ``runs_s``; ``shutdown_s``; how it ran: not part of ``data``)."""
 
     data: dict[str, Any]
     wall_s: float
     workers: int
+    timing: dict[str, float]
 
     @property
     def ranking(self) -> list[str]:
@@ -530,15 +532,19 @@ def _run_all(
     workers: int | None,
     progress: bool,
     run: Callable[..., dict[str, Any]],
-) -> tuple[list[dict[str, Any]], int]:
+) -> tuple[list[dict[str, Any]], int, dict[str, float]]:
     """Every task on Dask (runner's set-up: a local cluster of single-threaded worker processes
-    with the kernel warm-up plugin, or ``client``), with a progress bar; results in task order."""
+    with the kernel warm-up plugin, or ``client``), with a progress bar; results in task order,
+    the number of workers and the time [s] of the set-up (kernels, cluster, warm-up), the runs
+    and the cluster's shut-down."""
     from dask.distributed import Client, LocalCluster, as_completed
     from tqdm import tqdm
 
     from ..sim.warmup import ensure_compiled
     from .runner import KernelWarmup
 
+    tic = time.perf_counter()
+    timing: dict[str, float] = {}
     ensure_compiled()
     cluster = None
     own = client is None
@@ -553,6 +559,7 @@ def _run_all(
     try:
         client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        timing["startup_s"] = time.perf_counter() - tic
         futures = [
             client.submit(run, *args, **kw, pure=False, key=f"compare-{i}-{args[0].name}")
             for i, (args, kw) in enumerate(tasks)
@@ -564,12 +571,15 @@ def _run_all(
                 out[index[fut.key]] = fut.result()
                 bar.update(1)
                 fut.release()
+        timing["runs_s"] = time.perf_counter() - tic - timing["startup_s"]
     finally:
+        t_close = time.perf_counter()
         if own:
             client.close()
         if cluster is not None:
             cluster.close()
-    return out, n_workers
+        timing["shutdown_s"] = time.perf_counter() - t_close
+    return out, n_workers, timing
 
 
 def compare(
@@ -675,7 +685,7 @@ def compare(
         if NOMINAL_SCENARIO not in scens:
             tasks.append(((spec, nominal_sc, p, model), {"t_end": t_end, "bode": True}))
             keys.append((c, NOMINAL_SCENARIO, True))
-    results, n_workers = _run_all(
+    results, n_workers, timing = _run_all(
         tasks, client=client, workers=workers, progress=progress, run=compare_case
     )
     runs: dict[tuple[str, str], dict[str, Any]] = {}
@@ -744,7 +754,7 @@ def compare(
         "runs": {c: {s: runs[(c, s)] for s in scens} for c in specs},
         "verdict": _verdict(valid, list(scens), runs, nominal, w),
     }
-    return Comparison(json_ready(data), time.perf_counter() - tic, n_workers)
+    return Comparison(json_ready(data), time.perf_counter() - tic, n_workers, timing)
 
 
 def _lines(invalid: Sequence[Mapping[str, str]]) -> list[str]:
