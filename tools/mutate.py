@@ -20,9 +20,12 @@ Each mutant is applied, one at a time, to a *copy* of the repository in a tempor
 module (``--tests``; by default every test file under ``tests/unit`` that imports the module)
 are run there with ``PYTHONPATH`` pointing at the copy, stopping at the first failure, with a
 timeout. A mutant is *killed* if the tests fail (or do not even import), *survived* if they pass,
-*timeout* if they run longer than ``--timeout`` seconds (by default 3 x the unmutated run + 30 s;
-a timeout counts as killed in the score: the change was noticed). The unmutated copy must pass
-first.
+*timeout* if they use more than ``--timeout`` seconds of CPU time (by default 3 x the unmutated
+run's CPU time + 30 s; a timeout counts as killed in the score: the change was noticed). The
+limit is on CPU time, not wall-clock time, so that a machine shared with other work (a test run
+three times slower while others compute) does not turn slow survivors into "timeouts"; a
+wall-clock limit of 10 x the unmutated run + 300 s only catches a mutant that blocks. The
+unmutated copy must pass first.
 
 Survivors are listed as ``file:line: change`` with the original source line. A survivor that is
 listed in the equivalents file (``tools/mutation_equivalents.txt``: ``module path | source line,
@@ -39,9 +42,11 @@ from __future__ import annotations
 import argparse
 import ast
 import json
+import math
 import os
 import random
 import re
+import resource
 import shutil
 import signal
 import subprocess
@@ -308,23 +313,47 @@ def _copy_tree(dst: Path) -> None:
     shutil.copytree(ROOT, dst, ignore=ignore, symlinks=True, dirs_exist_ok=True)
 
 
-def _run_tests(sandbox: Path, tests: list[str], timeout: float) -> tuple[str, float]:
+def _child_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _run_tests(
+    sandbox: Path, tests: list[str], timeout: float, cpu_limit: float = 0.0
+) -> tuple[str, float, float]:
+    """Run ``tests`` in ``sandbox``: (status, wall-clock [s], CPU time [s]). ``cpu_limit`` [s]
+    (0: none) is the child's CPU-time limit (RLIMIT_CPU: SIGXCPU, then SIGKILL 5 s later);
+    ``timeout`` [s] the wall-clock one. Either ends the run as a "timeout"."""
     env = dict(os.environ)
     env["PYTHONPATH"] = str(sandbox) + os.pathsep + env.get("PYTHONPATH", "")
     env["PYTHONDONTWRITEBYTECODE"] = "1"
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider"]
     cmd += ["-p", "no:xdist", "-m", "not slow", *tests]
-    t0 = time.perf_counter()
+
+    def limit() -> None:
+        if cpu_limit > 0:
+            soft = math.ceil(cpu_limit)
+            resource.setrlimit(resource.RLIMIT_CPU, (soft, soft + 5))
+
+    t0, c0 = time.perf_counter(), _child_cpu()
     try:
         r = subprocess.run(
-            cmd, cwd=sandbox, env=env, timeout=timeout, capture_output=True, text=True
+            cmd,
+            cwd=sandbox,
+            env=env,
+            timeout=timeout,
+            capture_output=True,
+            text=True,
+            preexec_fn=limit,
         )
     except subprocess.TimeoutExpired:
-        return "timeout", time.perf_counter() - t0
-    dt = time.perf_counter() - t0
+        return "timeout", time.perf_counter() - t0, _child_cpu() - c0
+    dt, cpu = time.perf_counter() - t0, _child_cpu() - c0
+    if r.returncode in (-signal.SIGXCPU, -signal.SIGKILL) and cpu_limit > 0:
+        return "timeout", dt, cpu
     if r.returncode == 5:
         raise SystemExit(f"mutate: no tests collected in {tests}")
-    return ("survived" if r.returncode == 0 else "killed"), dt
+    return ("survived" if r.returncode == 0 else "killed"), dt, cpu
 
 
 def _load_equivalents() -> set[tuple[str, str, str]]:
@@ -346,7 +375,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sample", type=int, default=0, help="mutants to run (0: all)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the sample")
     ap.add_argument("--tests", nargs="+", help="test files (default: unit tests importing it)")
-    ap.add_argument("--timeout", type=float, default=0.0, help="per mutant [s] (0: automatic)")
+    ap.add_argument(
+        "--timeout",
+        type=float,
+        default=0.0,
+        help="CPU time per mutant [s] (0: automatic, 3 x the unmutated run's + 30 s)",
+    )
     ap.add_argument(
         "--max-minutes",
         type=float,
@@ -407,11 +441,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[mutate] {rel}: {len(points)} points, running {len(chosen)} (seed {args.seed})")
         print(f"[mutate] tests: {' '.join(tests)}")
         print(f"[mutate] sandbox: {sandbox}")
-        status, base = _run_tests(sandbox, tests, timeout=3600.0)
+        status, base, base_cpu = _run_tests(sandbox, tests, timeout=3600.0)
         if status != "survived":
             raise SystemExit(f"mutate: the tests fail on the unmutated copy ({status}); fix first")
-        timeout = args.timeout or 3.0 * base + 30.0
-        print(f"[mutate] unmutated run: pass in {base:.1f} s; timeout {timeout:.0f} s per mutant")
+        cpu_limit = args.timeout or 3.0 * base_cpu + 30.0
+        wall_limit = max(10.0 * base + 300.0, 2.0 * cpu_limit)
+        print(
+            f"[mutate] unmutated run: pass in {base:.1f} s ({base_cpu:.1f} s CPU); limit "
+            f"{cpu_limit:.0f} s CPU ({wall_limit:.0f} s wall-clock) per mutant"
+        )
         outcomes: list[Outcome] = []
         t_start = time.monotonic()
         # SIGTERM (e.g. a kill by pid) stops like Ctrl-C: the mutants run so far are reported
@@ -422,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"[mutate] --max-minutes {args.max_minutes:g} reached: stopping")
                     break
                 target.write_text(mutate_source(source, p), encoding="utf-8")
-                st, sec = _run_tests(sandbox, tests, timeout)
+                st, sec, _cpu = _run_tests(sandbox, tests, wall_limit, cpu_limit)
                 src = lines[p.line - 1].strip()
                 eq = st == "survived" and (rel, src, p.change) in equivalents
                 outcomes.append(Outcome(p, st, sec, src, eq))

@@ -1,0 +1,128 @@
+"""Value tests of drivetrain_ctrl.linear.linearisation (issue 22 item 4): the transfer-function
+conversions on hand-derived state-space models, the pole figures against their closed forms,
+and the output rows of a linearisation against the model's own Jacobian
+(``./dev mutate drivetrain_ctrl/linear/linearisation.py``)."""
+
+from __future__ import annotations
+
+import math
+
+import control
+import numpy as np
+import pytest
+
+from drivetrain_ctrl.linear.linearisation import (
+    _oscillatory,
+    natural_frequency_damping,
+    oscillatory_poles,
+    ss_to_tf,
+    trim_tf,
+)
+
+# (s + 1)(s + 2) = s^2 + 3 s + 2 in companion form
+A2 = [[0.0, 1.0], [-2.0, -3.0]]
+B2 = [[0.0], [1.0]]
+
+
+def _coeffs(tf: control.TransferFunction, i: int = 0, j: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(tf.num[i][j], dtype=float), np.asarray(tf.den[i][j], dtype=float)
+
+
+def test_ss_to_tf_on_a_companion_form() -> None:
+    # C = [5, 1]: (s + 5) / (s^2 + 3 s + 2); D = 0.5 adds 0.5 (s^2 + 3 s + 2)
+    sys = control.ss(A2, B2, [[5.0, 1.0]], [[0.5]])
+    num, den = _coeffs(ss_to_tf(sys))
+    assert den == pytest.approx([1.0, 3.0, 2.0], abs=1e-12)
+    assert num == pytest.approx([0.5, 2.5, 6.0], abs=1e-12)
+
+
+def test_ss_to_tf_two_inputs_two_outputs_and_a_zero_entry() -> None:
+    # x1' = -x1 + u1, x2' = -2 x2 + u2; y1 = x1, y2 = x1 + x2
+    sys = control.ss(
+        [[-1.0, 0.0], [0.0, -2.0]], np.eye(2), [[1.0, 0.0], [1.0, 1.0]], np.zeros((2, 2)), 0.0
+    )
+    tf = ss_to_tf(sys)
+    assert (tf.noutputs, tf.ninputs) == (2, 2)
+    for i, j, expected in [
+        (0, 0, [1.0, 2.0]),  # (s + 2) / ((s + 1)(s + 2))
+        (1, 0, [1.0, 2.0]),
+        (1, 1, [1.0, 1.0]),
+    ]:
+        num, den = _coeffs(tf, i, j)
+        assert den == pytest.approx([1.0, 3.0, 2.0], abs=1e-12)
+        assert np.trim_zeros(num, "f") == pytest.approx(expected, abs=1e-12)
+    num01, _ = _coeffs(tf, 0, 1)  # u2 does not reach y1: the numerator is exactly 0
+    assert np.all(num01 == 0.0)
+
+
+def test_ss_to_tf_keeps_names_and_sample_time() -> None:
+    sys = control.ss(A2, B2, [[1.0, 0.0]], [[0.0]], 0.01, inputs=["u"], outputs=["y"], name="p")
+    tf = ss_to_tf(sys)
+    assert tf.dt == 0.01 and tf.input_labels == ["u"] and tf.output_labels == ["y"]
+    assert tf.name == "p"
+
+
+def test_trim_tf_drops_the_round_off_leading_coefficients() -> None:
+    # y = x1: 1 / (s^2 + 3 s + 2), a relative degree 2 (D = 0 and C B = 0)
+    sys = control.ss(A2, B2, [[1.0, 0.0]], [[0.0]])
+    num, den = _coeffs(trim_tf(sys))
+    assert num.tolist() == pytest.approx([1.0], abs=1e-12) and num.size == 1
+    assert den == pytest.approx([1.0, 3.0, 2.0], abs=1e-12)
+    # y = x2 = s / (s^2 + 3 s + 2): C B = 1, one leading zero (D) dropped, the trailing 0 kept
+    num, _ = _coeffs(trim_tf(control.ss(A2, B2, [[0.0, 1.0]], [[0.0]])))
+    assert num.size == 2 and num == pytest.approx([1.0, 0.0], abs=1e-12)
+
+
+def test_trim_tf_keeps_a_small_but_real_leading_coefficient() -> None:
+    # y = 1e-9 x2 + x1: num = 1e-9 s + 1; C B = 1e-9 is not zero at its round-off scale
+    sys = control.ss(A2, B2, [[1.0, 1e-9]], [[0.0]])
+    num, _ = _coeffs(trim_tf(sys))
+    assert num.size == 2 and num[0] == pytest.approx(1e-9, rel=1e-6)
+    # a feedthrough D = 1e-9 is kept too
+    num, _ = _coeffs(trim_tf(control.ss(A2, B2, [[1.0, 0.0]], [[1e-9]])))
+    assert num.size == 3 and num[0] == pytest.approx(1e-9, rel=1e-9)
+
+
+def test_trim_tf_on_a_delayed_discrete_system() -> None:
+    # x1[k+1] = x2[k], x2[k+1] = u[k], y = x1: 1 / z^2 (two samples of delay)
+    sys = control.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], [[1.0, 0.0]], [[0.0]], 0.1)
+    tf = trim_tf(sys)
+    num, den = _coeffs(tf)
+    assert num.tolist() == [1.0]
+    assert den == pytest.approx([1.0, 0.0, 0.0], abs=1e-15)
+    assert tf.dt == 0.1
+
+
+def test_trim_tf_passes_a_static_gain_and_a_tf_through() -> None:
+    g = trim_tf(control.ss([], [], [], [[2.0]]))
+    assert _coeffs(g)[0] == pytest.approx([2.0])
+    h = control.tf([1.0, 2.0], [1.0, 3.0, 2.0])
+    num, den = _coeffs(trim_tf(h))
+    assert num == pytest.approx([1.0, 2.0]) and den == pytest.approx([1.0, 3.0, 2.0])
+
+
+def test_natural_frequency_and_damping() -> None:
+    fn, zeta = natural_frequency_damping(complex(-3.0, 4.0))
+    assert fn == pytest.approx(5.0 / (2.0 * math.pi), rel=1e-15)
+    assert zeta == pytest.approx(0.6, rel=1e-15)
+    fn, zeta = natural_frequency_damping(complex(1.0, 0.0))
+    assert (fn, zeta) == (pytest.approx(1.0 / (2.0 * math.pi)), pytest.approx(-1.0))
+    assert natural_frequency_damping(0j) == (0.0, 1.0)
+
+
+def test_oscillatory_poles_one_of_each_pair_sorted_by_modulus() -> None:
+    poles = [-3 + 10j, -3 - 10j, -5.0, -1 + 2j, -1 - 2j, -7 + 1e-12j, 1e-10j]
+    assert oscillatory_poles(poles) == [-1 + 2j, -3 + 10j]
+    # the round-off threshold scales with |p| above 1: 1e-9 |p|
+    assert oscillatory_poles([-1e6 + 5e-4j]) == []
+    assert oscillatory_poles([-1e6 + 2e-3j]) == [-1e6 + 2e-3j]
+    assert oscillatory_poles([-0.5 + 2e-9j]) == [-0.5 + 2e-9j]
+    assert oscillatory_poles(np.array([[-1 + 1j]])) == [-1 + 1j]
+
+
+def test_shuffle_mode_figures() -> None:
+    (m,) = _oscillatory(np.array([-3 + 4j, -3 - 4j, -2.0]))
+    assert (m.real, m.imag) == (-3.0, 4.0)
+    assert m.natural_frequency_hz == pytest.approx(5.0 / (2.0 * math.pi), rel=1e-15)
+    assert m.damped_frequency_hz == pytest.approx(4.0 / (2.0 * math.pi), rel=1e-15)
+    assert m.damping == pytest.approx(0.6, rel=1e-15)
