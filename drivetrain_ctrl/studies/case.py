@@ -377,9 +377,8 @@ def _judder(op: OperatingPoint, ctrl: Controller, loop: Any) -> tuple[float | No
     jc = judder_crossing(op, ctrl, rtol=LINEAR_JUDDER_RTOL)
     if jc.mu_slope_crit is None:
         return None, f"judder: {note}no numeric threshold: {jc.reason}"
-    return float(
-        jc.mu_slope_crit
-    ), f"judder: {note}numeric (judder_crossing, rtol {LINEAR_JUDDER_RTOL:g})"
+    how = f"judder: {note}numeric (judder_crossing, rtol {LINEAR_JUDDER_RTOL:g})"
+    return float(jc.mu_slope_crit), how
 
 
 def linear_figures(
