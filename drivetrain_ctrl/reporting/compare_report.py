@@ -391,15 +391,16 @@ def _pdf(
 
 @dataclass(frozen=True)
 class CompareReport:
-    """The files written by :func:`write_compare_report`: ``html``, ``pdf``, ``data``."""
+    """The files written by :func:`write_compare_report`: ``html``, ``pdf`` (None: not
+    written), ``data``."""
 
     html: Path
-    pdf: Path
+    pdf: Path | None
     data: Path
 
     @property
     def files(self) -> tuple[Path, ...]:
-        return (self.html, self.pdf, self.data)
+        return tuple(p for p in (self.html, self.pdf, self.data) if p is not None)
 
 
 def data_json_text(data: Mapping[str, Any]) -> str:
@@ -408,14 +409,19 @@ def data_json_text(data: Mapping[str, Any]) -> str:
     return json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
 
 
-def write_compare_report(data: Mapping[str, Any], out: str | Path) -> CompareReport:
-    """Write ``compare.html``, ``compare.pdf`` and ``data.json`` of comparison ``data`` into
-    folder ``out`` (created); returns their paths."""
+def write_compare_report(
+    data: Mapping[str, Any], out: str | Path, *, pdf: bool = True
+) -> CompareReport:
+    """Write ``compare.html``, ``compare.pdf`` (unless ``pdf`` is False: the slowest part) and
+    ``data.json`` of comparison ``data`` into folder ``out`` (created); returns their paths
+    (``pdf`` None when not written)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "data.json").write_text(data_json_text(data), encoding="utf-8")
     figs = compare_figures(data)
     sections = compare_sections(data)
     (out / "compare.html").write_text(_html(data, sections, figs), encoding="utf-8")
+    if not pdf:
+        return CompareReport(out / "compare.html", None, out / "data.json")
     _pdf(data, sections, figs, out / "compare.pdf")
     return CompareReport(out / "compare.html", out / "compare.pdf", out / "data.json")

@@ -479,14 +479,15 @@ class Comparison:
         """One line per controller or scenario left out, with the reason."""
         return [f"{p['kind']} {p['name']!r}: {p['reason']}" for p in self.data["invalid"]]
 
-    def plot(self, out: str | Path | None = None) -> Any:
+    def plot(self, out: str | Path | None = None, *, pdf: bool = True) -> Any:
         """The figures (:func:`~drivetrain_ctrl.reporting.compare_report.compare_figures`), or,
-        with ``out``, the report written there (compare.html, compare.pdf, data.json)."""
+        with ``out``, the report written there (compare.html, compare.pdf unless ``pdf`` is
+        False, data.json)."""
         from ..reporting.compare_report import compare_figures, write_compare_report
 
         if out is None:
             return compare_figures(self.data)
-        return write_compare_report(self.data, out)
+        return write_compare_report(self.data, out, pdf=pdf)
 
 
 def closed_loop_scenarios(params: DrivetrainParams | None = None) -> list[str]:
