@@ -236,11 +236,42 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
                 [c, s, _fmt(op["t_s"]), _fmt(op["slip_speed_rad_s"])]
                 + [_fmt(lin.get(k)) for k, _ in _MARGINS]
             )
+    lrows = [
+        [
+            "controller",
+            "scenario",
+            "t lock point [s]",
+            "shuffle [Hz]",
+            "shuffle damping",
+            "breakaway margin [N m]",
+            "clutch capacity [N m]",
+        ]
+    ]
+    for c in ctrls:
+        for s in scens:
+            lk = (data["runs"][c][s].get("linear") or {}).get("lock")
+            if lk is None:
+                lrows.append([c, s] + ["-"] * 5)
+                continue
+            first = lk["shuffle_modes"][0] if lk["shuffle_modes"] else {}
+            lrows.append(
+                [
+                    c,
+                    s,
+                    _fmt(lk["t_s"]),
+                    _fmt(first.get("natural_frequency_hz")),
+                    _fmt(first.get("damping")),
+                    _fmt(lk["clutch_breakaway_margin_Nm"]),
+                    _fmt(lk["clutch_capacity_Nm"]),
+                ]
+            )
     paras = [
         f"Slip mode: the clutch loop linearised at each run's slip point ({dfn['slip_delay_s']:g} s "
         f"after the controller start); the nominal point is that of {dfn['nominal_scenario']}. "
         "Lock mode: the clutch loop is open (x_c does not change the torque of a stuck clutch): "
-        "no margins and no Bode diagram.",
+        "no margins and no Bode diagram; at the lock point (the run "
+        f"{dfn['lock_delay_s']:g} s after lock-up) the locked driveline's lowest "
+        "shuffle mode and the clutch's torque margin to breakaway.",
         "Design worst case: the figures the design tool recorded over its plant set (the "
         "controller file's [design.achieved] table), not recomputed here.",
     ]
@@ -252,6 +283,7 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
                 ("Nominal slip loop", rows),
                 ("Design plant set, worst case (as recorded)", drows),
                 ("Slip loop per scenario", srows),
+                ("Lock mode per scenario", lrows),
             ],
             ["bode_slip"],
         )

@@ -23,7 +23,10 @@ Per controller and scenario (one worker task each):
   gain, phase, delay and disk margins, Ms, Mt, bandwidth, closed-loop stability
   (:func:`~drivetrain_ctrl.linear.margins.loop_margins` of
   :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`). In lock mode the clutch loop is open
-  (x_c does not change the transmitted torque of a stuck clutch): no margins, said so.
+  (x_c does not change the transmitted torque of a stuck clutch): no margins, said so; at the
+  lock point (the run :data:`LOCK_DELAY_S` after lock-up) the locked driveline's shuffle modes
+  and the clutch's torque margin to breakaway
+  (:func:`~drivetrain_ctrl.linear.clutch.locked_analysis`).
 * **linear against nonlinear**: the linear slip loop *predicts a good engagement* when its
   closed loop is stable; the switching plant *engages well* when the run ends ``ok``, locks up
   within the horizon and the engine does not stall. The two **disagree** when these differ. The
@@ -69,9 +72,13 @@ import numpy as np
 from ..control.laws import ControllerError, ControllerSpec, load_controller
 from ..core.serialize import json_ready
 from ..core.units import RAD_S_TO_RPM
-from ..linear.clutch import clutch_loop
+from ..linear.clutch import clutch_loop, locked_analysis
 from ..linear.margins import db_phase, loop_margins
-from ..linear.operating_point import SLIP_DELAY_S, slip_point_after_start
+from ..linear.operating_point import (
+    SLIP_DELAY_S,
+    operating_point_from_result,
+    slip_point_after_start,
+)
 from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
 from ..scenarios.scenario import Scenario, builtin_scenarios, load_scenario
 from ..sim.metrics import state_accelerations
@@ -87,6 +94,7 @@ __all__ = [
     "DRIFT_THRESHOLD",
     "DRIFT_WINDOW_S",
     "JERK_LIMIT_M_S3",
+    "LOCK_DELAY_S",
     "NOMINAL_SCENARIO",
     "N_SERIES",
     "RATIO_CAP",
@@ -125,6 +133,8 @@ SERIES: dict[str, str] = {
 }
 #: the frequency grid [rad/s] of the Bode data (below the Nyquist frequency of a 10-ms controller)
 BODE_GRID_RAD_S: tuple[float, ...] = tuple(float(w) for w in np.logspace(-1.0, 2.4, 200))
+#: the lock operating point: the run this long after lock-up [s] (or its end)
+LOCK_DELAY_S: float = 0.5
 #: operating-point drift: relative change of the slip speed ...
 DRIFT_THRESHOLD: float = 0.25
 #: ... within this long after the slip point [s]
@@ -201,9 +211,43 @@ def _series(run: Any, t_end: float, n: int) -> dict[str, Any]:
     return {k: np.asarray(v, dtype=float).tolist() for k, v in cols.items()}
 
 
+def _lock(run: Any) -> tuple[dict[str, Any] | None, str]:
+    """Lock mode at the run's lock point (:data:`LOCK_DELAY_S` after lock-up): the driveline's
+    shuffle modes and the clutch's torque margin to breakaway (the loop itself is open)."""
+    lock_t = run.metrics.get("lockup_time_s")
+    if lock_t is None:
+        return None, f"{_LOCK_REASON}; no lock-up in the run: no lock point"
+    t = min(float(lock_t) + LOCK_DELAY_S, float(run.result.t_last))
+    try:
+        op = operating_point_from_result(run.result, t, drivetrain=run.drivetrain)
+        if op.clutch_mode != "stuck":
+            return None, f"{_LOCK_REASON}; the clutch slips again at t = {t:.4g} s: no lock point"
+        la = locked_analysis(op)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return None, f"{_LOCK_REASON}; no lock analysis: {exc}"
+    sm = {m.element: m for m in la.breakaway_margins}
+    clutch = sm.get("clutch")
+    return {
+        "t_s": t,
+        "shuffle_modes": [
+            {"natural_frequency_hz": m.natural_frequency_hz, "damping": m.damping}
+            for m in la.shuffle_modes
+        ],
+        "clutch_breakaway_margin_Nm": clutch.margin if clutch is not None else None,
+        "clutch_capacity_Nm": clutch.capacity if clutch is not None else None,
+    }, _LOCK_REASON
+
+
 def _linear(run: Any, bode: bool) -> dict[str, Any]:
-    """The slip loop at the run's slip point: margins (and the Bode data of L and S)."""
-    out: dict[str, Any] = {"slip": None, "slip_reason": None, "lock_reason": _LOCK_REASON}
+    """The slip loop at the run's slip point: margins (and the Bode data of L and S); lock mode
+    at the lock point (:func:`_lock`)."""
+    lock, lock_reason = _lock(run)
+    out: dict[str, Any] = {
+        "slip": None,
+        "slip_reason": None,
+        "lock": lock,
+        "lock_reason": lock_reason,
+    }
     try:
         op = slip_point_after_start(run.result, run.drivetrain, run.scenario.start_time)
         cl = clutch_loop(op, run.controller)
@@ -738,6 +782,7 @@ def compare(
             "rollback_limit_m": ROLLBACK_LIMIT_M,
             "nominal_scenario": NOMINAL_SCENARIO,
             "slip_delay_s": SLIP_DELAY_S,
+            "lock_delay_s": LOCK_DELAY_S,
             "drift_threshold": DRIFT_THRESHOLD,
             "drift_window_s": DRIFT_WINDOW_S,
             "ratio_cap": RATIO_CAP,

@@ -21,6 +21,7 @@ import pytest
 from drivetrain_ctrl.cli import main
 from drivetrain_ctrl.studies.compare import (
     JERK_LIMIT_M_S3,
+    LOCK_DELAY_S,
     N_SERIES,
     RATIO_CAP,
     ROLLBACK_LIMIT_M,
@@ -97,6 +98,16 @@ def _data_json_reports_the_bad_controllers_and_compares_the_others(
         assert s["stable"] is True and s["ms"] >= 1.0 and s["phase_margin_deg"] > 0
         assert max(p[0] for p in s["closed_loop_poles"]) < 0.0
         assert len(s["bode"]["omega_rad_s"]) == len(s["bode"]["S_db"]) == 200
+    # lock mode: the loop is open; at the lock point the driveline's shuffle and the clutch's
+    # margin to breakaway (it holds: 0 < margin < capacity)
+    for c in ("paper", "pi"):
+        for sc in ("paper-start", "hill-start"):
+            lin = data["runs"][c][sc]["linear"]
+            lk, t_lock = lin["lock"], data["runs"][c][sc]["metrics"]["lockup_time_s"]
+            assert "loop is open" in lin["lock_reason"]
+            assert lk["t_s"] == pytest.approx(min(t_lock + LOCK_DELAY_S, lk["t_s"]))
+            assert lk["shuffle_modes"] and lk["shuffle_modes"][0]["natural_frequency_hz"] > 0
+            assert 0 < lk["clutch_breakaway_margin_Nm"] < lk["clutch_capacity_Nm"]
     # the ranking holds only the valid controllers
     assert sorted(r["controller"] for r in data["verdict"]["ranking"]) == ["paper", "pi"]
     assert len(data["verdict"]["reasoning"]) == 2
