@@ -223,18 +223,21 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
             drows[-1] += ["-"] * (len(_DESIGN) - 1)
         else:
             drows.append([c] + [_fmt(d.get(k)) for k, _ in _DESIGN])
+    fr = "/".join(f"{f:g}" for f in dfn["slip_fractions"])
     srows = [["controller", "scenario", "t slip point [s]", "slip [rad/s]"]]
-    srows[0] += [lab for _, lab in _MARGINS]
+    srows[0] += [lab for _, lab in _MARGINS] + [f"stable at slip x {fr}"]
     for c in ctrls:
         for s in scens:
             lin = (data["runs"][c][s].get("linear") or {}).get("slip")
             if lin is None:
-                srows.append([c, s, "-", "-"] + ["-"] * len(_MARGINS))
+                srows.append([c, s, "-", "-"] + ["-"] * (len(_MARGINS) + 1))
                 continue
             op = lin["operating_point"]
+            later = "/".join(_fmt(p.get("stable")) for p in lin.get("later_points", []))
             srows.append(
                 [c, s, _fmt(op["t_s"]), _fmt(op["slip_speed_rad_s"])]
                 + [_fmt(lin.get(k)) for k, _ in _MARGINS]
+                + [later or "-"]
             )
     lrows = [
         [

@@ -28,7 +28,9 @@ Per controller and scenario (one worker task each):
   and the clutch's torque margin to breakaway
   (:func:`~drivetrain_ctrl.linear.clutch.locked_analysis`).
 * **linear against nonlinear**: the linear slip loop *predicts a good engagement* when its
-  closed loop is stable; the switching plant *engages well* when the run ends ``ok``, locks up
+  closed loop is stable at the slip point and at the later slip points where the slip speed has
+  fallen to :data:`SLIP_FRACTIONS` of its value there (a falling mu(slip) acts at small slip:
+  judder); the switching plant *engages well* when the run ends ``ok``, locks up
   within the horizon and the engine does not stall. The two **disagree** when these differ. The
   cause is named from what the run did after the slip point and the linear model cannot:
   *lock-up* (the clutch sticks: the slip loop ceases to exist), *sign switch* (the slip changes
@@ -100,6 +102,7 @@ __all__ = [
     "RATIO_CAP",
     "ROLLBACK_LIMIT_M",
     "SERIES",
+    "SLIP_FRACTIONS",
     "WEIGHTS",
     "compare",
     "compare_case",
@@ -133,6 +136,9 @@ SERIES: dict[str, str] = {
 }
 #: the frequency grid [rad/s] of the Bode data (below the Nyquist frequency of a 10-ms controller)
 BODE_GRID_RAD_S: tuple[float, ...] = tuple(float(w) for w in np.logspace(-1.0, 2.4, 200))
+#: the later slip points: where the slip speed has fallen to these fractions of its value at the
+#: slip point (a falling mu(slip) acts at small slip: the judder threshold)
+SLIP_FRACTIONS: tuple[float, ...] = (0.5, 0.2, 0.05)
 #: the lock operating point: the run this long after lock-up [s] (or its end)
 LOCK_DELAY_S: float = 0.5
 #: operating-point drift: relative change of the slip speed ...
@@ -266,6 +272,8 @@ def _linear(run: Any, bode: bool) -> dict[str, Any]:
     }
     poles = [complex(p["real"], p["imag"]) for p in lm.get("closed_loop_poles", [])]
     slip["closed_loop_poles"] = [[p.real, p.imag] for p in poles]
+    slip0 = op.state("omega_engine") - op.state(_driven(run))
+    slip["later_points"] = _later_points(run, op, slip0)
     if bode:
         w = np.asarray(BODE_GRID_RAD_S)
         hL = control.frequency_response(cl.L, w).complex
@@ -275,6 +283,41 @@ def _linear(run: Any, bode: bool) -> dict[str, Any]:
         bd = {"omega_rad_s": w, "L_db": dbL, "L_deg": phL, "S_db": dbS, "S_deg": phS}
         slip["bode"] = {k: np.asarray(v, dtype=float).tolist() for k, v in bd.items()}
     out["slip"] = slip
+    return out
+
+
+def _later_points(run: Any, op: Any, slip0: float) -> list[dict[str, Any]]:
+    """The slip loop where the slip speed has fallen to :data:`SLIP_FRACTIONS` of ``slip0``
+    (the first sample after the slip point at which the clutch still slips); stability, Ms and
+    the rightmost closed-loop pole at each."""
+    res = run.result
+    t = np.asarray(res.t)
+    slip = np.abs(res.state("omega_engine") - res.state(_driven(run)))
+    modes = np.asarray(res.mode_series("clutch"))
+    slipping = (modes == "slip+") | (modes == "slip-")
+    t_op = float(op.t or 0.0)
+    out: list[dict[str, Any]] = []
+    for f in SLIP_FRACTIONS:
+        idx = np.flatnonzero((t > t_op) & slipping & (slip <= f * abs(slip0)))
+        point: dict[str, Any] = {"fraction": f, "t_s": None}
+        if idx.size:
+            tk = float(t[idx[0]])
+            try:
+                opk = operating_point_from_result(res, tk, drivetrain=run.drivetrain)
+                lm = loop_margins(clutch_loop(opk, run.controller).L)
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                point.update(t_s=tk, reason=f"no slip loop: {exc}")
+            else:
+                point.update(
+                    t_s=tk,
+                    slip_speed_rad_s=opk.state("omega_engine") - opk.state(_driven(run)),
+                    stable=lm.stable,
+                    ms=lm.ms,
+                    max_real_pole=max((p.real for p in lm.closed_loop_poles), default=None),
+                )
+        else:
+            point["reason"] = "the slip speed does not fall that far while the clutch slips"
+        out.append(point)
     return out
 
 
@@ -375,7 +418,9 @@ def _agreement(rec: Mapping[str, Any], crit: Mapping[str, bool | None]) -> dict[
     if lin is None or lin.get("stable") is None:
         why = (rec.get("linear") or {}).get("slip_reason") or "no stability verdict"
         return {"disagree": None, "causes": [], "statement": f"no linear prediction: {why}."}
-    predicts = bool(lin["stable"])
+    later = [p for p in lin.get("later_points", []) if p.get("stable") is not None]
+    unstable_at = [p for p in later if p["stable"] is False]
+    predicts = bool(lin["stable"]) and not unstable_at
     engages = bool(crit["lockup"]) and bool(crit["no_stall"])
     obs = rec.get("observed") or {}
     causes = []
@@ -390,7 +435,15 @@ def _agreement(rec: Mapping[str, Any], crit: Mapping[str, bool | None]) -> dict[
             f"operating-point drift ({100 * obs['drift_rel']:.0f} % of the slip speed in "
             f"{DRIFT_WINDOW_S:g} s)"
         )
-    pred = "stable (a good engagement)" if predicts else "unstable"
+    if predicts:
+        pred = f"stable at the slip point and at {len(later)} later one(s) (a good engagement)"
+    elif not lin["stable"]:
+        pred = "unstable at the slip point"
+    else:
+        where = ", ".join(
+            f"t = {p['t_s']:.3g} s (slip {p['slip_speed_rad_s']:.3g} rad/s)" for p in unstable_at
+        )
+        pred = f"unstable later in the slip phase, at {where}"
     did = "engages (locks up, no stall)" if engages else "does not engage well"
     disagree = predicts != engages
     stmt = f"linear slip loop {pred}; the switching plant {did}"
@@ -783,14 +836,16 @@ def compare(
             "nominal_scenario": NOMINAL_SCENARIO,
             "slip_delay_s": SLIP_DELAY_S,
             "lock_delay_s": LOCK_DELAY_S,
+            "slip_fractions": list(SLIP_FRACTIONS),
             "drift_threshold": DRIFT_THRESHOLD,
             "drift_window_s": DRIFT_WINDOW_S,
             "ratio_cap": RATIO_CAP,
             "series_units": dict(SERIES),
             "disagree": (
-                "the linear slip loop at the scenario's slip point is closed-loop stable "
-                "(predicts a good engagement) while the run does not lock up within the horizon "
-                "or stalls the engine, or the other way round"
+                "the linear slip loop is closed-loop stable at the run's slip point and at the "
+                "later slip points (slip speed fallen to the fractions slip_fractions of its "
+                "value there), predicting a good engagement, while the run does not lock up "
+                "within the horizon or stalls the engine, or the other way round"
             ),
         },
         "invalid": invalid,
