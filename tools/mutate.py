@@ -301,16 +301,19 @@ def default_tests(rel: str) -> list[str]:
     return out
 
 
-def _copy_tree(dst: Path) -> None:
+def _copy_tree(dst: Path, rel: str) -> None:
+    """Copy the repository to ``dst``, byte code included (numba's kernel cache, and the other
+    modules' .pyc: each mutant then compiles only the mutated module), except the byte code of
+    the mutated module ``rel`` itself. A copied .pyc is used only while its source's mtime and
+    size match (copytree keeps the mtimes; a mutant is written with a new one)."""
+
     def ignore(d: str, names: list[str]) -> set[str]:
-        out = {n for n in names if n in SKIP_DIRS or n.endswith(".egg-info")}
-        # keep numba's kernel cache (the kernels' __pycache__); drop the other byte code so
-        # that no stale .pyc of a mutated file can be picked up
-        if "__pycache__" in names and Path(d).name != "kernels":
-            out.add("__pycache__")
-        return out
+        return {n for n in names if n in SKIP_DIRS or n.endswith(".egg-info")}
 
     shutil.copytree(ROOT, dst, ignore=ignore, symlinks=True, dirs_exist_ok=True)
+    mod = dst / rel
+    for pyc in (mod.parent / "__pycache__").glob(f"{mod.stem}.*.pyc"):
+        pyc.unlink()
 
 
 def _child_cpu() -> float:
@@ -436,7 +439,7 @@ def main(argv: list[str] | None = None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="mutate-"))
     sandbox = tmp / "repo"
     try:
-        _copy_tree(sandbox)
+        _copy_tree(sandbox, rel)
         target = sandbox / rel
         print(f"[mutate] {rel}: {len(points)} points, running {len(chosen)} (seed {args.seed})")
         print(f"[mutate] tests: {' '.join(tests)}")

@@ -201,3 +201,29 @@ def test_to_dict_lays_out_the_bounds_and_reasons() -> None:
     assert d["active"] == [{"bound": "mt", "frequency_rad_s": 0.7, "slack": 0.01}]
     assert d["reasons"]["phase_margin_deg"] == "no gain crossover"
     assert d["ms"] == pytest.approx(c.ms, rel=1e-8)
+
+
+def test_gain_margins_up_to_60_db_are_reported() -> None:
+    # L = k / (s (s + 1)^2): gain margin 2 / k; 2 / k = 800 (58 dB) is reported, 2000 (66 dB) not
+    w = np.logspace(-5, 2, 3001)
+    c = check_loop(P3, control.tf([2.0 / 800.0], [1.0]), grid=w)
+    assert c.gain_margin_db == pytest.approx(20 * math.log10(800.0), rel=1e-6)
+    c2 = check_loop(P3, control.tf([2.0 / 2000.0], [1.0]), grid=w)
+    assert c2.gain_margin_db is None
+    assert dict(c2.reasons)["gain_margin_db"] == "no phase crossover with 0.001 <= |L| <= 1000"
+    assert c2.phase_margin_deg is not None and c2.stable is True
+
+
+def test_a_state_space_plant_or_controller_gives_the_same_check() -> None:
+    ref = check_loop(P3, control.tf([0.5], [1.0]), grid=W)
+    for plant, ctrl in (
+        (control.ss(P3), control.tf([0.5], [1.0])),
+        (P3, control.ss(control.tf([0.5], [1.0]))),
+    ):
+        c = check_loop(plant, ctrl, grid=W)
+        assert c.stable is True
+        assert c.gain_margin_db == pytest.approx(20 * math.log10(4.0), rel=1e-6)
+        assert c.phase_margin_deg == pytest.approx(ref.phase_margin_deg, rel=1e-6)
+        assert c.ms == pytest.approx(ref.ms, rel=1e-12)
+    unstable = check_loop(control.ss(P3), control.tf([3.0], [1.0]), grid=W)
+    assert unstable.stable is False
