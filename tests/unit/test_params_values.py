@@ -185,3 +185,12 @@ def test_the_sections_are_frozen() -> None:
             setattr(s, name, 1.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         p.name = "x"  # type: ignore[misc]
+
+
+def test_a_flat_piece_of_the_damper_spring_is_rejected() -> None:
+    d = _base()
+    d["damper"]["spring"] = {"x": [0.0, 0.1, 0.2], "y": [0.0, 50.0, 50.0]}
+    with pytest.raises(ParameterError, match=r"phi_e must be strictly increasing"):
+        params_from_dict(d)
+    d["damper"]["spring"] = {"x": [0.0, 0.1, 0.2], "y": [0.0, 50.0, 50.000001]}
+    assert params_from_dict(d).damper.spring.y[2] == 50.000001
