@@ -517,9 +517,11 @@ def _sections(data: dict[str, Any]) -> list[Section]:
                 [
                     "How well the paired linear figures of the slip-mode loop at each sample's "
                     f"parameters ({', '.join(lin['columns'])}) predict the nonlinear outcome: "
-                    "Spearman's rank correlation per group with "
-                    f"{', '.join(lin['outcomes'])} (pass as 0/1), over the finished runs; the "
-                    "figure colours each run by pass (green) or fail (red)."
+                    "Spearman's rank correlation per group and over all runs with "
+                    f"{', '.join(lin['outcomes'])} (pass as 0/1), over the finished runs (n/a: "
+                    "a constant figure or fewer runs than needed); the figure draws "
+                    f"{', '.join(lin['plotted'])} and colours each run by pass (green) or fail "
+                    "(red)."
                 ],
                 [("Rank correlation, linear figure vs nonlinear outcome", lt)],
                 [f for f in ("linear",) if f in figs],
