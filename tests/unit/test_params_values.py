@@ -194,3 +194,15 @@ def test_a_flat_piece_of_the_damper_spring_is_rejected() -> None:
         params_from_dict(d)
     d["damper"]["spring"] = {"x": [0.0, 0.1, 0.2], "y": [0.0, 50.0, 50.000001]}
     assert params_from_dict(d).damper.spring.y[2] == 50.000001
+
+
+def test_a_long_offending_value_is_cut_to_80_characters() -> None:
+    for n, cut in ((78, False), (79, True), (100, True)):  # repr adds the two quotes
+        text = "x" * n
+        d = _base()
+        d["gearbox"]["gear_ratios"] = text
+        with pytest.raises(ParameterError) as e:
+            params_from_dict(d)
+        shown = repr(text)[:77] + "..." if cut else repr(text)
+        assert str(e.value) == f"gearbox.gear_ratios = {shown}: must be a sequence of numbers"
+        assert len(shown) == 80  # at most 80 characters shown
