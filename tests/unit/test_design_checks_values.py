@@ -21,7 +21,7 @@ from drivetrain_ctrl.design.checks import (
     disk_figures,
     worst_figures,
 )
-from drivetrain_ctrl.design.plants import Plant
+from drivetrain_ctrl.design.plants import Plant, as_plant_set, frequency_grid
 
 # L = k / (s (s + 1)^2): phase -180 deg at w = 1, where |L| = k / 2 -> gain margin 2 / k
 P3 = control.tf([1.0], [1.0, 2.0, 1.0, 0.0])
@@ -227,3 +227,20 @@ def test_a_state_space_plant_or_controller_gives_the_same_check() -> None:
         assert c.ms == pytest.approx(ref.ms, rel=1e-12)
     unstable = check_loop(control.ss(P3), control.tf([3.0], [1.0]), grid=W)
     assert unstable.stable is False
+
+
+def test_check_plant_set_uses_the_given_grid_or_one_for_the_whole_set() -> None:
+    C = control.tf([0.5], [1.0])
+    cs = check_plant_set([P3, 2.0 * P3], C, grid=W)
+    for k, c in zip((0.5, 1.0), cs, strict=True):
+        S = 1.0 / (1.0 + _L(k, W))
+        assert c.ms == pytest.approx(np.max(np.abs(S)), rel=1e-12)
+        assert c.ms_frequency_rad_s == W[int(np.argmax(np.abs(S)))]
+    # default: one check grid around the set's design grid, the same for every plant
+    fast = control.tf([100.0], [1.0, 100.0, 0.0])  # poles 0 and 100 rad/s: a wider set grid
+    pset = as_plant_set([P3, fast])
+    w_set = check_grid(frequency_grid(pset), 0.0)
+    d = check_plant_set(pset, C)
+    ref = check_loop(pset[0], C, grid=w_set)
+    assert d[0].ms == ref.ms and d[0].ms_frequency_rad_s == ref.ms_frequency_rad_s
+    assert d[0].mt_frequency_rad_s == ref.mt_frequency_rad_s
