@@ -4,7 +4,7 @@ Renders the ``data`` of :func:`~drivetrain_ctrl.studies.compare.compare` (nothin
 here): the Bode overlay of L and S of every controller at its nominal slip point (the slip mode;
 in lock mode the clutch loop is open and has no Bode diagram, which the page says), one figure of
 time responses per scenario (engine and primary-shaft speed, pedal, clutch torque, vehicle
-acceleration; every controller in each, named in the legend), and the tables: verdict (with the
+acceleration, with the engine-speed reference; every controller in each, named in the legend), and the tables: verdict (with the
 reasoning), linear figures (nominal and per scenario, and the design's recorded worst case),
 switching-plant metrics with pass/fail, linear against nonlinear, and what was left out.
 
@@ -42,7 +42,7 @@ __all__ = [
 
 #: the rows of a time-response figure: (series key, axis label)
 _ROWS: tuple[tuple[str, str], ...] = (
-    ("omega_engine_rpm", "engine (solid) and\nprimary (dashed) [rpm]"),
+    ("omega_engine_rpm", "engine (solid), primary\n(dashed), reference [rpm]"),
     ("pedal_mm", "pedal x_c [mm]"),
     ("clutch_torque_Nm", "clutch torque [N m]"),
     ("vehicle_accel_m_s2", "vehicle accel. [m/s^2]"),
@@ -143,6 +143,7 @@ def compare_figures(data: Mapping[str, Any]) -> dict[str, Any]:
     for s in data["inputs"]["scenarios"]:
         fig = Figure(figsize=(8.0, 9.0), layout="constrained")
         axes = fig.subplots(len(_ROWS), 1, sharex=True)
+        ref: list[float] | None = None
         for i, c in enumerate(ctrls):
             rec = data["runs"][c][s]
             ser = rec.get("series")
@@ -152,6 +153,9 @@ def compare_figures(data: Mapping[str, Any]) -> dict[str, Any]:
             for ax, (key, _) in zip(axes, _ROWS, strict=True):
                 ax.plot(t, ser[key], color=_color(i), lw=1.1, label=c)
             axes[0].plot(t, ser["omega_primary_rpm"], color=_color(i), lw=0.9, ls="--")
+            ref = ser.get("omega_ref_rpm")
+        if ref is not None:  # the scenario's, the same for every controller
+            axes[0].plot(t, ref, color="k", lw=0.9, ls=":", label="reference")
         for ax, (_, label) in zip(axes, _ROWS, strict=True):
             ax.set_ylabel(label, fontsize=8)
             ax.grid(True, lw=0.3)

@@ -15,7 +15,8 @@ Per controller and scenario (one worker task each):
   stall, peak jerk ``<=`` :data:`JERK_LIMIT_M_S3`, and on a grade roll-back ``<=``
   :data:`ROLLBACK_LIMIT_M`;
 * the time responses on a common grid of :data:`N_SERIES` points over the scenario's horizon
-  (the run re-sampled there by :meth:`SimulationResult.sample`): engine and primary-shaft speed,
+  (the run re-sampled there by :meth:`SimulationResult.sample`): the engine-speed reference,
+  engine and primary-shaft speed,
   pedal (actuator position x_c), clutch torque and vehicle acceleration;
 * the linear figures of the clutch slip loop at the scenario's slip operating point
   (:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`: the run
@@ -128,6 +129,7 @@ CRITERIA: dict[str, str] = {
 N_SERIES: int = 300
 #: the time responses kept per run (name -> unit)
 SERIES: dict[str, str] = {
+    "omega_ref_rpm": "rpm",
     "omega_engine_rpm": "rpm",
     "omega_primary_rpm": "rpm",
     "pedal_mm": "mm",
@@ -206,8 +208,10 @@ def _series(run: Any, t_end: float, n: int) -> dict[str, Any]:
     right, _ = state_accelerations(s)
     ic = [c.name for c in model.chain.couplings].index("clutch")
     ip = model.input_names.index("pedal")
+    ref = run.scenario.reference  # a closed-loop scenario has one (Scenario checks it)
     cols = {
         "t_s": s.t,
+        "omega_ref_rpm": np.asarray(ref(s.t), dtype=float) * RAD_S_TO_RPM,
         "omega_engine_rpm": s.state("omega_engine") * RAD_S_TO_RPM,
         "omega_primary_rpm": s.state("omega_primary") * RAD_S_TO_RPM,
         "pedal_mm": np.asarray(s.u)[:, ip] * 1e3,
