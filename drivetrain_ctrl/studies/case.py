@@ -36,8 +36,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..control.blocks import Controller
 from ..control.laws import ControllerError, ControllerSpec, builtin_controllers, load_controller
 from ..core.serialize import json_ready
@@ -386,6 +384,8 @@ def linear_figures(
 ) -> dict[str, Any]:
     """The paired linear figures of a closed-loop run (:data:`LINEAR_FIGURES`; None where
     undefined) and ``linear_note`` (how the judder threshold was found, or why figures are None).
+    A linear analysis that fails leaves its figures None with the reason in the note; it never
+    fails the run, whose metrics stand.
 
     The slip-mode clutch loop of ``controller`` (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop`:
     actuator, clutch and engine with the driveline coupled in, ``L = C P``, negative feedback) at
@@ -406,8 +406,8 @@ def linear_figures(
         out["lin:t_s"] = op.t
         loop = clutch_loop(op, controller)
         m = loop_margins(loop.L, omega=_auto_grid(loop.L, n=LINEAR_GRID_POINTS).tolist())
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        out["linear_note"] = f"no linear figures: {exc}"
+    except Exception as exc:  # noqa: BLE001 - the run's own figures stand; the reason is kept
+        out["linear_note"] = f"no linear figures: {type(exc).__name__}: {exc}"
         return out
     out["lin:gain_margin"] = None if m.gain_margin_db is None else 10.0 ** (m.gain_margin_db / 20)
     out["lin:phase_margin_deg"] = m.phase_margin_deg
@@ -425,8 +425,8 @@ def linear_figures(
     out["lin:mu_slope"] = mu
     try:
         crit, how = _judder(op, controller, loop)
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        crit, how = None, f"judder: failed ({exc})"
+    except Exception as exc:  # noqa: BLE001 - as above
+        crit, how = None, f"judder: failed ({type(exc).__name__}: {exc})"
     notes.append(how)
     out["lin:mu_slope_crit"] = crit
     if crit is not None and mu is not None and math.isfinite(mu):
