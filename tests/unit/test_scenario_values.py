@@ -306,3 +306,11 @@ def test_replace_keeps_the_checks() -> None:
     sc = _sc()
     with pytest.raises(ScenarioError, match="throttle0"):
         dataclasses.replace(sc, throttle0=2.0)
+
+
+@pytest.mark.parametrize("name", ["throttle", "pedal", "brake"])
+def test_a_missing_input_is_named(name: str) -> None:
+    d = _d()
+    del d["inputs"][name]
+    with pytest.raises(ScenarioError, match=rf"^inputs\.{name}: missing$"):
+        scenario_from_dict(d)
