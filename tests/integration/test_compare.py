@@ -500,3 +500,16 @@ def test_cli_writes_the_three_files_and_prints_the_reasoning(
     }
     data = json.loads((tmp_path / "c" / "data.json").read_text())
     assert data["inputs"]["weights"]["ms"] == 2.0
+
+
+def test_all_scenarios_are_the_closed_loop_builtins() -> None:
+    from drivetrain_ctrl.studies.compare import closed_loop_scenarios
+
+    assert closed_loop_scenarios() == [
+        "paper-start",
+        "hill-start",
+        "worn-clutch",
+        "judder",
+        "heavy-load",
+        "tip-out-reengage",
+    ]
