@@ -11,6 +11,7 @@ from .figures import (
     plot_root_locus,
     plot_simulation,
 )
+from .study_report import StudyReport, build_study_report
 
 __all__ = [
     "plot_simulation",
@@ -21,4 +22,6 @@ __all__ = [
     "plot_root_locus",
     "Report",
     "build_report",
+    "StudyReport",
+    "build_study_report",
 ]

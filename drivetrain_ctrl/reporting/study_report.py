@@ -225,13 +225,19 @@ def _fig_sensitivity(data: dict[str, Any]) -> Any:
         for k, m in enumerate(mets):
             v = [s["metrics"][m][p]["sobol_first"] for p in params]
             y = np.arange(len(params)) + (k - (len(mets) - 1) / 2) * h
+            ci = [s["metrics"][m][p].get("sobol_first_conf") for p in params]
             ax.barh(y, [0.0 if x is None else x for x in v], h, label=f"S1 {m}",
-                    color=_COLORS[k % len(_COLORS)])  # fmt: skip
+                    color=_COLORS[k % len(_COLORS)],
+                    xerr=[math.nan if c is None or x is None else c for x, c in zip(v, ci, strict=True)],
+                    error_kw={"ecolor": "0.3", "capsize": 2, "lw": 0.8})  # fmt: skip
             rho = [s["metrics"][m][p]["spearman"] for p in params]
             ax.plot([math.nan if r is None else abs(r) for r in rho], y, "k|", ms=8)
         ax.set_yticks(np.arange(len(params)), params, fontsize=8)
         ax.set_xlim(0, 1)
-        ax.set_xlabel("first-order Sobol index (bars); |Spearman rho| (ticks)", fontsize=8)
+        ax.set_xlabel(
+            f"S1, RBD-FAST (bars, {100 * data['confidence']:g} % interval); |Spearman rho| (ticks)",
+            fontsize=8,
+        )
         ax.set_title(s["group"], fontsize=9)
         ax.grid(True, axis="x", alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
@@ -361,6 +367,14 @@ def _pct(e: dict[str, Any]) -> str:
     return f"{100 * e['rate']:.1f} % [{100 * e['ci_low']:.1f}, {100 * e['ci_high']:.1f}]"
 
 
+def _s1(e: dict[str, Any]) -> str:
+    """A Sobol index with its confidence half-width (``n/a`` where undefined)."""
+    if e["sobol_first"] is None:
+        return "n/a"
+    conf = e.get("sobol_first_conf")
+    return f"{e['sobol_first']:.2f}" + ("" if conf is None else f" +/- {conf:.2f}")
+
+
 def _sections(data: dict[str, Any]) -> list[Section]:
     """``(title, paragraphs, tables, figure names)`` of every section, in order."""
     s = data["study"]
@@ -450,16 +464,23 @@ def _sections(data: dict[str, Any]) -> list[Section]:
         f"with a defined value (at least {m['min_rows']}): Spearman's rank correlation rho "
         "(scipy.stats.spearmanr; monotone influence, with its sign) and the first-order Sobol "
         "index S1 = Var(E[Y | X_i]) / Var(Y), the share of the metric's variance explained by "
-        "the parameter alone, estimated from the given samples by cutting the parameter's range "
-        "into equal-count classes (about sqrt(n) of them) and taking the bias-corrected "
-        "correlation ratio.",
-        "Limits: the samples are Monte Carlo, Latin hypercube or Sobol points, not a Saltelli "
-        "design, so only first-order indices can be estimated: interactions between parameters "
-        "and total-effect indices are not resolved; the estimate assumes independently drawn "
-        "parameters (true of the study's sampling); for a parameter without influence it "
-        "scatters around 0 by about sqrt(2 (M - 1)) / n for n runs in M classes; "
-        "rows with an undefined metric are left out, which biases a metric undefined in part "
-        "of the space. Parameters are ranked by their largest S1 over the criteria's metrics.",
+        "the parameter alone, estimated from the given samples by RBD-FAST "
+        "(SALib.analyze.rbd_fast: the runs ordered by the parameter as in Plischke 2010, S1 the "
+        f"share of the output's spectrum in the first {m['sobol_harmonics']} harmonics, fewer "
+        "for few runs, bias-corrected after Tissot and Prieur 2012), with SALib's "
+        f"{conf} confidence half-width (+/-, a normal approximation over "
+        f"{m['sobol_resamples']} bootstrap draws of half the runs, seed {m['sobol_seed']}).",
+        "Limits: the samples are Monte Carlo, Latin hypercube, Sobol points or a grid, not a "
+        "Saltelli design, so only first-order indices can be estimated: interactions between "
+        "parameters and total-effect indices are not resolved; the estimate assumes "
+        "independently drawn parameters (true of the study's sampling); the bias correction "
+        "can put a parameter without influence below 0; a response that jumps with "
+        "the parameter (a threshold, or a grid parameter with few values) spreads over more "
+        "harmonics than are summed, so its S1 is underestimated; with few runs the interval is "
+        "wide (from draws of half the runs, on the wide side), and the index says little where "
+        "it spans 0 to 1. Rows with an undefined metric "
+        "are left out, which biases a metric undefined in part of the space. Parameters are "
+        "ranked by their largest S1 over the criteria's metrics.",
     ]
     tables = []
     for sv in data["sensitivity"]:
@@ -472,7 +493,7 @@ def _sections(data: dict[str, Any]) -> list[Section]:
         for met in sv["ranked_on"]:
             dt.append([met, *(
                 f"rho {_fmt(sv['metrics'][met][r['parameter']]['spearman'], '.2f')}, "
-                f"S1 {_fmt(sv['metrics'][met][r['parameter']]['sobol_first'], '.2f')}"
+                f"S1 {_s1(sv['metrics'][met][r['parameter']])}"
                 for r in sv["ranking"])])  # fmt: skip
         tables.append((f"Rank correlation and S1, {sv['group']}", dt))
     out.append((STUDY_SECTIONS[4], paras, tables, [f for f in ("sensitivity",) if f in figs]))

@@ -16,13 +16,13 @@ wall times) holds every number behind every figure of the report
   and counted).
 * **Global sensitivity** of each metric to each uncertain parameter, per group: Spearman's rank
   correlation (``scipy.stats.spearmanr``) and the first-order Sobol index
-  S_i = Var(E[Y | X_i]) / Var(Y) estimated from the given samples by binning X_i into
-  equal-count classes (the correlation ratio, corrected for its small-sample bias like an
-  epsilon-squared; see :func:`first_order_index`). The studies' samples are Monte Carlo, Latin
-  hypercube or Sobol points, not a Saltelli design, so only first-order indices from given
-  data apply: interactions are not resolved, the parameters must be drawn independently (they
-  are), and for a parameter without influence the estimate scatters around 0 by about
-  sqrt(2 (M - 1)) / n for n runs in M classes.
+  S_i = Var(E[Y | X_i]) / Var(Y) estimated from the given samples by SALib's RBD-FAST analyzer
+  (``SALib.analyze.rbd_fast``: Plischke's given-data ordering, Tarantola et al. 2006,
+  Plischke 2010, with the Tissot & Prieur 2012 bias correction) with its bootstrap confidence
+  half-width (see :func:`first_order_index`). The studies' samples are Monte Carlo, Latin
+  hypercube, Sobol points or grids, not a Saltelli design, so only first-order indices from
+  given data apply: interactions are not resolved and the parameters must be drawn
+  independently (they are).
 * **Worst runs**: per controller the runs that miss their criteria the most (the largest
   relative violation ``(value - threshold) / |threshold|`` of any criterion; an undefined
   metric counts as the worst), re-simulated through
@@ -62,6 +62,9 @@ __all__ = [
     "LINEAR_OUTCOMES",
     "LINEAR_PLOTTED",
     "MIN_ROWS",
+    "SOBOL_HARMONICS",
+    "SOBOL_RESAMPLES",
+    "SOBOL_SEED",
     "StudyAnalysis",
     "StudyReportError",
     "analyse_study",
@@ -75,6 +78,12 @@ F64 = NDArray[np.float64]
 CONFIDENCE: float = 0.95
 #: fewest runs with a defined value for a rank correlation or a Sobol index
 MIN_ROWS: int = 10
+#: harmonics of RBD-FAST (SALib's default ``M``; fewer for few runs, see :func:`first_order_index`)
+SOBOL_HARMONICS: int = 10
+#: bootstrap resamples of the Sobol index's confidence interval (SALib's default)
+SOBOL_RESAMPLES: int = 100
+#: seed of the Sobol index's tie order and bootstrap: the same table gives the same data.json
+SOBOL_SEED: int = 23
 #: metrics the paired linear figures are correlated with (those the study keeps), and ``pass``
 LINEAR_OUTCOMES: tuple[str, ...] = ("lockup_time_s", "jerk_max_m_s3")
 #: the paired linear figures drawn against the outcomes (those present), the others are tabled
@@ -127,39 +136,51 @@ def _bins_for(n: int) -> int:
     return int(min(50, max(2, round(math.sqrt(n)))))
 
 
-def first_order_index(x: Any, y: Any, bins: int | None = None) -> float:
-    """First-order Sobol index S = Var(E[y | x]) / Var(y) of one input ``x`` from given samples.
+def first_order_index(x: Any, y: Any, *, seed: int = SOBOL_SEED) -> tuple[float, float]:
+    """First-order Sobol index S = Var(E[y | x]) / Var(y) of one input ``x`` from given samples,
+    and the half-width of its confidence interval at :data:`CONFIDENCE`.
 
-    The runs are sorted by ``x`` and cut into ``bins`` classes of equal count (default
-    round(sqrt(n)), 2 to 50; a parameter with at most that many distinct values is binned by
-    value). With the between-class sum of squares SSB, the within-class SSW and the total SST:
-    S = (SSB - (M - 1) SSW / (n - M)) / SST for M classes (the correlation ratio with its
-    upward bias of about (M - 1) / n removed), clipped to [0, 1]. NaN for fewer than
-    :data:`MIN_ROWS` runs or a constant ``y``.
+    Computed by ``SALib.analyze.rbd_fast.analyze`` (RBD-FAST from given data: the runs are
+    ordered by ``x`` in Plischke's 2010 zig-zag, S is the share of the output's periodogram in
+    the first M harmonics, bias-corrected after Tissot & Prieur 2012, so it may be
+    negative for an input without influence; the interval is SALib's: a normal approximation
+    over :data:`SOBOL_RESAMPLES` bootstrap draws of half the runs). M = :data:`SOBOL_HARMONICS`,
+    or fewer for few runs so that each half-size bootstrap draw still has more than M
+    frequencies: M = min(10, floor(floor(n / 2) / 2) - 1). The rows are first put in an order
+    drawn from ``seed``: RBD-FAST sorts by ``x``, and the tied runs of a discrete or grid
+    parameter would otherwise stay in table order, which follows the other parameters. The
+    result depends only on the data and ``seed``. (NaN, NaN) for fewer than :data:`MIN_ROWS`
+    runs, non-finite values, or a constant ``x`` or ``y``; a NaN half-width when the bootstrap
+    draws are degenerate.
     """
+    from SALib.analyze import rbd_fast
+
     xa = np.asarray(x, dtype=float)
     ya = np.asarray(y, dtype=float)
-    n = ya.shape[0]
+    n = ya.shape[0] if ya.ndim == 1 else 0
     if n < MIN_ROWS or xa.shape != ya.shape:
-        return math.nan
-    sst = float(np.sum((ya - ya.mean()) ** 2))
-    if sst <= 0.0 or float(np.ptp(xa)) == 0.0:
-        return math.nan
-    m = bins or _bins_for(n)
-    values = np.unique(xa)
-    if values.shape[0] <= m:
-        groups = [np.flatnonzero(xa == v) for v in values]
-    else:
-        order = np.argsort(xa, kind="stable")
-        groups = list(np.array_split(order, m))
-    m = len(groups)
-    if n - m < 1:
-        return math.nan
-    mean = float(ya.mean())
-    ssb = float(sum(g.shape[0] * (float(ya[g].mean()) - mean) ** 2 for g in groups))
-    ssw = sst - ssb
-    s = (ssb - (m - 1) * ssw / (n - m)) / sst
-    return float(min(1.0, max(0.0, s)))
+        return (math.nan, math.nan)
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
+        return (math.nan, math.nan)
+    if float(np.ptp(xa)) == 0.0 or float(np.ptp(ya)) == 0.0:
+        return (math.nan, math.nan)
+    harmonics = min(SOBOL_HARMONICS, (n // 2) // 2 - 1)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(n)
+    problem = {"num_vars": 1, "names": ["x"], "bounds": [[float(xa.min()), float(xa.max())]]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a degenerate bootstrap draw: its NaN is reported
+        si = rbd_fast.analyze(
+            problem,
+            xa[order, None],
+            ya[order],
+            M=harmonics,
+            num_resamples=SOBOL_RESAMPLES,
+            conf_level=CONFIDENCE,
+            seed=rng,
+        )
+    s1, conf = float(si["S1"][0]), float(si["S1_conf"][0])
+    return (s1 if math.isfinite(s1) else math.nan, conf if math.isfinite(conf) else math.nan)
 
 
 def _spearman(x: F64, y: F64) -> tuple[float, float]:
@@ -348,10 +369,12 @@ def _sensitivity(
             for p in params:
                 x, y = _finite_pair(sub[PARAM + p], sub[m])
                 rho, pv = _spearman(x, y)
+                index, half_width = first_order_index(x, y)
                 per[m][p] = {
                     "spearman": rho,
                     "p_value": pv,
-                    "sobol_first": first_order_index(x, y),
+                    "sobol_first": index,
+                    "sobol_first_conf": half_width,
                     "n": int(x.size),
                 }
         ranking: list[dict[str, Any]] = []
@@ -661,8 +684,12 @@ def analyse_study(folder: str | Path, *, worst: int = 2, resimulate: bool = True
         "methods": {
             "interval": "Wilson score interval (scipy.stats.binomtest(...).proportion_ci(method='wilson'))",
             "rank_correlation": "Spearman (scipy.stats.spearmanr), runs with a defined value",
-            "sobol": "first-order index from given data: equal-count binning of the parameter, "
-            "bias-corrected correlation ratio (drivetrain_ctrl.studies.analysis.first_order_index)",
+            "sobol": "first-order index from given data: RBD-FAST (SALib.analyze.rbd_fast, "
+            "Plischke 2010 ordering, Tissot-Prieur 2012 bias correction), confidence half-width "
+            "from SALib's bootstrap of half the runs",
+            "sobol_harmonics": SOBOL_HARMONICS,
+            "sobol_resamples": SOBOL_RESAMPLES,
+            "sobol_seed": SOBOL_SEED,
             "min_rows": MIN_ROWS,
         },
         "pass_rates": _pass_rates(table, groups, crit),

@@ -25,7 +25,12 @@ from drivetrain_ctrl.reporting.study_report import (
     StudyReportError,
     build_study_report,
 )
-from drivetrain_ctrl.studies.analysis import LINEAR_PLOTTED, MIN_ROWS, analyse_study
+from drivetrain_ctrl.studies.analysis import (
+    LINEAR_PLOTTED,
+    MIN_ROWS,
+    analyse_study,
+    first_order_index,
+)
 from drivetrain_ctrl.studies.case import LINEAR_FIGURES
 from drivetrain_ctrl.studies.runner import (
     _prepare_folder,
@@ -169,7 +174,10 @@ def test_rank_correlations_and_ranking_equal_scipy_on_the_table(
     assert e["n"] == int(ok.sum()) < len(sub)  # failed rows and the undefined lock-up left out
     assert e["spearman"] == pytest.approx(stats.spearmanr(x, y).statistic, rel=1e-8)
     assert e["spearman"] == pytest.approx(1.0)  # lock-up time is a rising function of the mass
-    assert e["sobol_first"] > 0.9
+    # the Sobol index is SALib's RBD-FAST on the same runs (first_order_index), with its interval
+    s1, conf = first_order_index(x, y)
+    assert (e["sobol_first"], e["sobol_first_conf"]) == (pytest.approx(s1), pytest.approx(conf))
+    assert e["sobol_first"] > 0.9 and 0.0 < e["sobol_first_conf"] < 0.5
     assert sens["paper"]["metrics"]["jerk_max_m_s3"]["clutch.k12_max"]["spearman"] == pytest.approx(
         -1.0
     )
@@ -226,7 +234,8 @@ def test_the_report_is_deterministic_and_self_contained(
     assert text.count('src="data:image/png;base64,') == len(names)
     for title in STUDY_SECTIONS:
         assert f"<h2>{title}</h2>" in text
-    assert "Wilson" in text and "first-order" in text
+    assert "Wilson" in text and "first-order" in text and "SALib.analyze.rbd_fast" in text
+    assert "S1 1.00 +/- 0.0" in text  # the index with its interval in the table
     assert (synth_files / "report.pdf").read_bytes()[:5] == b"%PDF-"
 
 
@@ -298,6 +307,15 @@ def test_a_bad_folder_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["study", "report", str(tmp_path / "nope")]) == 2
     err = capsys.readouterr().err
     assert "error: study folder" in err and "nope" in err and "Traceback" not in err
+
+
+def test_the_study_report_is_exported_from_reporting_like_the_controller_report() -> None:
+    import drivetrain_ctrl.reporting as reporting
+    from drivetrain_ctrl.reporting import study_report
+
+    assert reporting.build_study_report is study_report.build_study_report
+    assert reporting.StudyReport is study_report.StudyReport
+    assert {"build_study_report", "StudyReport", "build_report", "Report"} <= set(reporting.__all__)
 
 
 def test_the_command_writes_the_three_files(synth_files: Path) -> None:

@@ -18,7 +18,7 @@ PACKAGE = REPO / "drivetrain_ctrl"
 NOT_YET_IMPORTED: dict[str, str] = {}
 
 #: import names of distributions whose module is named otherwise
-IMPORT_NAME = {"tomli-w": "tomli_w"}
+IMPORT_NAME = {"tomli-w": "tomli_w", "salib": "SALib"}
 
 
 def _declared() -> dict[str, str]:
