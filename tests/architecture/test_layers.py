@@ -23,10 +23,10 @@ LAYERS = {
     "sim": 5,
     "linear": 5,
     "design": 6,
-    "studies": 6,
-    "reporting": 7,
-    "cli": 8,
-    "": 9,  # the package's __init__: the public API, re-exported
+    "studies": 7,  # above design: a comparison or study checks designed controllers with it
+    "reporting": 8,
+    "cli": 9,
+    "": 10,  # the package's __init__: the public API, re-exported
 }
 
 
