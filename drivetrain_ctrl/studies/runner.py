@@ -159,11 +159,12 @@ def _row(
             row[k] = _as_number(record.get(k))
         row["linear_note"] = _as_text(record.get("linear_note"))
     ok = status == "ok"
-    for c in criteria:
+    met = []
+    for c in criteria:  # each column its own criterion (not "this and the earlier ones")
         passed = ok and bool(c.check([_as_number(record.get(c.metric))])[0])
         row[f"pass:{c.text}"] = passed
-        ok = ok and passed
-    row["pass"] = ok if criteria else status == "ok"
+        met.append(passed)
+    row["pass"] = ok and all(met)
     return row
 
 

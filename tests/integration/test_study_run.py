@@ -181,6 +181,37 @@ def test_a_run_that_raises_is_a_failed_row_with_its_reason() -> None:
     assert not row["pass"] and np.isnan(row["lockup_time_s"])
 
 
+def test_each_pass_column_is_its_own_criterion() -> None:
+    """A row missing the first criterion but meeting the second shows pass:<second> True
+    (the columns are not cumulative); ``pass`` is False; a failed run meets none."""
+    from drivetrain_ctrl.studies.study import Criterion
+
+    crit = (Criterion("lockup_time_s", "<=", 2.2), Criterion("engine_speed_min_rpm", ">=", 700.0))
+    item = ("s000000|paper|paper-start", 0, "paper", "paper-start", {"vehicle.M_v": 1.0})
+    case = Case(scenario="paper-start", controller="paper", model="reduced")
+    metrics = ("lockup_time_s", "engine_speed_min_rpm")
+
+    def late(case: Case) -> dict[str, Any]:
+        return {"status": "ok", "lockup_time_s": 3.0, "engine_speed_min_rpm": 800.0}
+
+    (row,) = run_chunk([item], [case], metrics, crit, late)
+    assert row["pass:lockup_time_s <= 2.2"] is False
+    assert row["pass:engine_speed_min_rpm >= 700"] is True
+    assert row["pass"] is False
+
+    def good(case: Case) -> dict[str, Any]:
+        return {"status": "ok", "lockup_time_s": 2.0, "engine_speed_min_rpm": 800.0}
+
+    (row,) = run_chunk([item], [case], metrics, crit, good)
+    assert row["pass"] is True and all(row[f"pass:{c.text}"] for c in crit)
+
+    def stopped(case: Case) -> dict[str, Any]:
+        return {"status": "t_max", "lockup_time_s": 2.0, "engine_speed_min_rpm": 800.0}
+
+    (row,) = run_chunk([item], [case], metrics, crit, stopped)
+    assert not any(row[f"pass:{c.text}"] for c in crit) and row["pass"] is False
+
+
 # -- on a real local cluster of two worker processes -------------------------------------------
 def _kill_once(case: Case, *, marker: str, victim: str) -> Mapping[str, Any]:
     """run_case, but the worker running ``victim`` kills its own process the first time."""
