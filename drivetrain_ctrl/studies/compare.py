@@ -41,11 +41,22 @@ Per controller and scenario (one worker task each):
 
 Per controller: the nominal linear figures are those on :data:`NOMINAL_SCENARIO` (run in
 addition when it is not among the scenarios) with the Bode data of L and S on
-:data:`BODE_GRID_RAD_S`; where the controller file records its design (``[design.achieved]``:
-the worst case over the design's plant set, checked by
-:func:`~drivetrain_ctrl.design.checks.check_loop` when it was designed), those figures are
-carried into ``data`` as recorded (the design layer is a peer of this one: nothing is
-recomputed here).
+:data:`BODE_GRID_RAD_S`, and the **certified sector** there
+(:func:`~drivetrain_ctrl.design.certificates.clutch_sector_certificate`, ``certificate=True``):
+the largest interval ``[mu'_cert, 0]`` of friction slopes (of mu/mu0, [s/rad]) for which the
+slip loop is certified stable for *every* nonlinear, time-varying friction characteristic with
+its slope in it (the sector ``[0, -k13 mu'_cert]`` [N m s/rad] of the friction feedback, by an
+LMI), beside the linear limit (a constant slope) and the judder threshold. The **design plant
+set** (``design_checks=True``): the controller is checked again here
+(:func:`~drivetrain_ctrl.design.checks.check_plant_set`, worst case by
+:func:`~drivetrain_ctrl.design.checks.worst_figures`) over the plant set rebuilt
+(:func:`~drivetrain_ctrl.design.clutch.clutch_plant_set`) from the ``[design.spec.plants]`` table
+of its controller file; a controller without a design spec is checked over
+:data:`DEFAULT_PLANT_SET`'s built-in design spec plants (sampled at the controller's period with
+its delay when it is sampled), and the report says which. The nominal figures there are the
+worst over the set's nominal-parameter plants (one per instant). What the file records
+(``[design.achieved]``) is kept beside them, for comparison. Each distinct plant set is built
+once, in a worker task that runs in parallel with the runs.
 
 Bad input never stops the others: an unknown controller or scenario, a controller file that
 does not load, an open-loop scenario, or a controller whose nominal slip loop is unstable is
@@ -61,8 +72,8 @@ over keys of the mean over scenarios (1.0: best everywhere).
 
 from __future__ import annotations
 
+import json
 import math
-import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -94,6 +105,7 @@ __all__ = [
     "CompareError",
     "Comparison",
     "DEFAULT_CONTROLLERS",
+    "DEFAULT_PLANT_SET",
     "DRIFT_THRESHOLD",
     "DRIFT_WINDOW_S",
     "JERK_LIMIT_M_S3",
@@ -107,9 +119,12 @@ __all__ = [
     "WEIGHTS",
     "compare",
     "compare_case",
+    "design_check",
     "closed_loop_scenarios",
 ]
 
+#: the built-in design spec whose plant set checks a controller that has no design spec of its own
+DEFAULT_PLANT_SET: str = "robust-pi"
 #: the controllers compared by default
 DEFAULT_CONTROLLERS: tuple[str, ...] = ("paper", "pi", "robust-pi", "hinf")
 #: the scenario whose slip point gives each controller's nominal linear figures
@@ -171,7 +186,7 @@ _MARGIN_KEYS = (
     "bandwidth_rad_s",
     "stable",
 )
-#: the design's worst-case figures read from a controller file's [design.achieved] table
+#: the worst-case figures over a plant set (recomputed; and as recorded in [design.achieved])
 _DESIGN_KEYS = (
     "n_plants",
     "ms_max",
@@ -248,9 +263,41 @@ def _lock(run: Any) -> tuple[dict[str, Any] | None, str]:
     }, _LOCK_REASON
 
 
-def _linear(run: Any, bode: bool) -> dict[str, Any]:
-    """The slip loop at the run's slip point: margins (and the Bode data of L and S); lock mode
-    at the lock point (:func:`_lock`)."""
+def _certificate(op: Any, controller: Any) -> tuple[dict[str, Any], float]:
+    """The certified friction-slope sector of the slip loop at ``op``
+    (:func:`~drivetrain_ctrl.design.certificates.clutch_sector_certificate`; module docstring),
+    or the reason there is none; and its cost [s] (not part of ``data``)."""
+    from ..design.certificates import clutch_sector_certificate
+
+    tic = time.perf_counter()
+    try:
+        cert = clutch_sector_certificate(op, controller)
+    except Exception as exc:  # noqa: BLE001 - the reason is reported; the comparison goes on
+        out: dict[str, Any] = {
+            "mu_slope_certified": None,
+            "reason": f"no certificate: {type(exc).__name__}: {exc}",
+        }
+        return out, time.perf_counter() - tic
+    mu = cert.mu_slope_certified
+    out = {
+        "mu_slope_certified": mu,
+        "sector_N_m_s_rad": None if mu is None else [0.0, -cert.k13 * mu],
+        "mu_slope_linear": cert.mu_slope_linear,
+        "judder_closed_form": cert.judder_closed_form,
+        "judder_numeric": cert.judder_numeric,
+        "ratio": cert.ratio,
+        "k13": cert.k13,
+        "dt": cert.dt,
+        "message": cert.message,
+        "reason": None if mu is not None else cert.message,
+    }
+    return out, time.perf_counter() - tic
+
+
+def _linear(run: Any, bode: bool, certificate: bool = False) -> dict[str, Any]:
+    """The slip loop at the run's slip point: margins (and the Bode data of L and S, and with
+    ``certificate`` the certified sector, :func:`_certificate`); lock mode at the lock point
+    (:func:`_lock`)."""
     lock, lock_reason = _lock(run)
     out: dict[str, Any] = {
         "slip": None,
@@ -286,6 +333,8 @@ def _linear(run: Any, bode: bool) -> dict[str, Any]:
         dbS, phS = db_phase(hS)
         bd = {"omega_rad_s": w, "L_db": dbL, "L_deg": phL, "S_db": dbS, "S_deg": phS}
         slip["bode"] = {k: np.asarray(v, dtype=float).tolist() for k, v in bd.items()}
+    if certificate:
+        slip["certificate"], out["certificate_s"] = _certificate(op, run.controller)
     out["slip"] = slip
     return out
 
@@ -371,10 +420,12 @@ def compare_case(
     t_end: float | None = None,
     n_series: int = N_SERIES,
     bode: bool = False,
+    certificate: bool = False,
 ) -> dict[str, Any]:
     """One controller on one scenario (runs on a worker; picklable arguments): the case's
-    metrics, time responses, slip-loop figures and what the run did after the slip point;
-    ``status`` ``failed`` with ``error`` when the case cannot run (nothing raised)."""
+    metrics, time responses, slip-loop figures (with ``bode`` its Bode data, with
+    ``certificate`` its certified sector) and what the run did after the slip point; ``status``
+    ``failed`` with ``error`` when the case cannot run (nothing raised)."""
     out: dict[str, Any] = {"controller": controller.name, "scenario": scenario.name}
     case = Case(scenario=scenario, params=params, model=model, controller=controller, t_end=t_end)
     try:
@@ -383,7 +434,7 @@ def compare_case(
         out.update(status="failed", error=f"{type(exc).__name__}: {exc}")
         return out
     horizon = float(t_end if t_end is not None else scenario.t_end)
-    lin = _linear(run, bode)
+    lin = _linear(run, bode, certificate)
     t_op = lin["slip"]["operating_point"]["t_s"] if lin["slip"] is not None else None
     out.update(
         status=str(run.metrics.get("status")),
@@ -394,6 +445,80 @@ def compare_case(
         linear=lin,
         observed=_observed(run, t_op),
     )
+    return out
+
+
+def _plants_of(spec: ControllerSpec) -> tuple[dict[str, Any], str]:
+    """The plant-set keywords a controller is checked over (module docstring) and where they
+    come from: its file's ``[design.spec.plants]``, else :data:`DEFAULT_PLANT_SET`'s."""
+    from ..design.from_spec import load_design_spec
+
+    own = ((spec.to_dict().get("design") or {}).get("spec") or {}).get("plants")
+    if own:
+        return dict(own), "the controller file's design spec ([design.spec.plants])"
+    kw = dict(load_design_spec(DEFAULT_PLANT_SET).plants)
+    where = (
+        f"no design spec in the controller file: the default plant set (the built-in design "
+        f"spec {DEFAULT_PLANT_SET!r}'s plants)"
+    )
+    if spec.sample_period_s is not None:
+        kw.update(sample_period=spec.sample_period_s, delay_samples=spec.delay_samples)
+        where += (
+            f", sampled every {spec.sample_period_s:g} s with {spec.delay_samples} sample(s) "
+            "of delay as the controller"
+        )
+    return kw, where
+
+
+def design_check(
+    controllers: Sequence[ControllerSpec], plants: Mapping[str, Any]
+) -> dict[str, dict[str, Any]]:
+    """Every controller of ``controllers`` checked over the plant set ``plants`` (keywords of
+    :func:`~drivetrain_ctrl.design.clutch.clutch_plant_set`; built once; runs on a worker):
+    per controller name ``plant_set`` (its summary), ``worst`` (over every plant) and
+    ``nominal`` (over the nominal-parameter plants) by
+    :func:`~drivetrain_ctrl.design.checks.worst_figures`, the ``limiting`` plant (largest Ms),
+    ``reason`` (None, or why there are no figures) and ``seconds`` (the cost: not for ``data``).
+    """
+    import warnings
+
+    from ..control.laws import UnstableLoopWarning
+    from ..design.checks import check_plant_set, worst_figures
+    from ..design.clutch import clutch_plant_set
+
+    tic = time.perf_counter()
+    kw = dict(plants)
+    box = kw.pop("box", None)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnstableLoopWarning)
+            pset = clutch_plant_set(**kw, box=box)
+    except Exception as exc:  # noqa: BLE001 - the reason is reported; the comparison goes on
+        why = f"plant set not built: {type(exc).__name__}: {exc}"
+        share = (time.perf_counter() - tic) / max(1, len(controllers))
+        return {c.name: {"reason": why, "seconds": share} for c in controllers}
+    build_s = (time.perf_counter() - tic) / max(1, len(controllers))
+    nominal = [i for i, pt in enumerate(pset.points) if pt.get("vertex") == "nominal"]
+    keys = [k for k in _DESIGN_KEYS if k != "plant_set"]
+    out: dict[str, dict[str, Any]] = {}
+    for spec in controllers:
+        t0 = time.perf_counter()
+        rec: dict[str, Any] = {"plant_set": pset.summary(), "reason": None}
+        try:
+            checks = check_plant_set(pset, spec.lti())
+        except Exception as exc:  # noqa: BLE001 - as above
+            rec["reason"] = f"check failed: {type(exc).__name__}: {exc}"
+        else:
+            worst = worst_figures(checks)
+            rec["worst"] = {k: worst[k] for k in keys}
+            rec["nominal"] = (
+                {k: v for k, v in worst_figures([checks[i] for i in nominal]).items() if k in keys}
+                if nominal
+                else None
+            )
+            rec["limiting"] = max(checks, key=lambda c: c.ms).name
+        rec["seconds"] = build_s + time.perf_counter() - t0
+        out[spec.name] = rec
     return out
 
 
@@ -628,59 +753,38 @@ def _check_weights(weights: Mapping[str, float] | None) -> dict[str, float]:
 
 
 def _run_all(
-    tasks: Sequence[tuple[Any, ...]],
+    tasks: Sequence[tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]],
     *,
     client: Any,
     workers: int | None,
     progress: bool,
-    run: Callable[..., dict[str, Any]],
-) -> tuple[list[dict[str, Any]], int, dict[str, float]]:
-    """Every task on Dask (runner's set-up: a local cluster of single-threaded worker processes
-    with the kernel warm-up plugin, or ``client``), with a progress bar; results in task order,
-    the number of workers and the time [s] of the set-up (kernels, cluster, warm-up), the runs
-    and the cluster's shut-down."""
-    from dask.distributed import Client, LocalCluster, as_completed
+) -> tuple[list[Any], int, dict[str, float]]:
+    """Every task ``(function, args, kwargs)`` on Dask
+    (:func:`~drivetrain_ctrl.studies.runner.dask_client`: a local cluster of single-threaded
+    worker processes with the kernel warm-up plugin, or ``client``), with a progress bar;
+    results in task order, the number of workers and the time [s] of the set-up (kernels,
+    cluster, warm-up), the runs and the cluster's shut-down."""
+    from dask.distributed import as_completed
     from tqdm import tqdm
 
-    from ..sim.warmup import ensure_compiled
-    from .runner import KernelWarmup
+    from .runner import dask_client
 
     tic = time.perf_counter()
     timing: dict[str, float] = {}
-    ensure_compiled()
-    cluster = None
-    own = client is None
-    if own:
-        cluster = LocalCluster(
-            n_workers=workers or os.cpu_count() or 1,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-        )
-        client = Client(cluster)
-    try:
-        client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
+    with dask_client(client, workers=workers, timing=timing) as client:
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-        timing["startup_s"] = time.perf_counter() - tic
         futures = [
-            client.submit(run, *args, **kw, pure=False, key=f"compare-{i}-{args[0].name}")
-            for i, (args, kw) in enumerate(tasks)
+            client.submit(fn, *args, **kw, pure=False, key=f"compare-{i}-{fn.__name__}")
+            for i, (fn, args, kw) in enumerate(tasks)
         ]
         index = {f.key: i for i, f in enumerate(futures)}
-        out: list[dict[str, Any]] = [{} for _ in futures]
-        with tqdm(total=len(futures), unit="run", disable=not progress, dynamic_ncols=True) as bar:
+        out: list[Any] = [{} for _ in futures]
+        with tqdm(total=len(futures), unit="task", disable=not progress, dynamic_ncols=True) as bar:
             for fut in as_completed(futures):
                 out[index[fut.key]] = fut.result()
                 bar.update(1)
                 fut.release()
         timing["runs_s"] = time.perf_counter() - tic - timing["startup_s"]
-    finally:
-        t_close = time.perf_counter()
-        if own:
-            client.close()
-        if cluster is not None:
-            cluster.close()
-        timing["shutdown_s"] = time.perf_counter() - t_close
     return out, n_workers, timing
 
 
@@ -697,6 +801,8 @@ def compare(
     client: Any = None,
     progress: bool = True,
     warn: Callable[[str], None] | None = None,
+    design_checks: bool = True,
+    certificate: bool = True,
 ) -> Comparison:
     """Compare ``controllers`` (built-in names or controller TOML files; a list or
     comma-separated) on ``scenarios`` (``"all"``: every built-in closed-loop scenario; or names /
@@ -707,6 +813,10 @@ def compare(
     ``workers``: local worker processes (default: the cores), or ``client``: a
     ``dask.distributed.Client`` to run on (left open). ``progress``: a progress bar on stderr.
     ``warn``: called with one line per controller or scenario left out (e.g. print to stderr).
+    ``design_checks``: check every controller over its design plant set (module docstring; a
+    few seconds per controller, in parallel with the runs). ``certificate``: the certified
+    sector of each nominal slip loop (about a second per controller, on the nominal run's
+    worker).
     Returns a :class:`Comparison`; raises :class:`CompareError` for invalid options or when no
     controller (or no scenario) is valid."""
     tic = time.perf_counter()
@@ -725,6 +835,9 @@ def compare(
         raise CompareError(f"workers = {workers!r}: must be an integer >= 1")
     if client is not None and workers is not None:
         raise CompareError("client: give a client or workers, not both")
+    for name, flag in (("design_checks", design_checks), ("certificate", certificate)):
+        if not isinstance(flag, bool):
+            raise CompareError(f"{name} = {flag!r}: must be True or False")
     try:
         p = params if isinstance(params, DrivetrainParams) else load_params(params)
     except FileNotFoundError as exc:
@@ -773,22 +886,42 @@ def compare(
             "no valid scenario to compare on" + "".join(f"\n  {c}" for c in _lines(invalid))
         )
     nominal_sc = scens.get(NOMINAL_SCENARIO) or load_scenario(NOMINAL_SCENARIO, params=p)
-    tasks: list[tuple[Any, ...]] = []
+    tasks: list[tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]] = []
+    # the design plant sets first (the longest tasks): one task per distinct set
+    groups: dict[str, tuple[dict[str, Any], list[ControllerSpec]]] = {}
+    plant_source: dict[str, str] = {}
+    if design_checks:
+        for c, spec in specs.items():
+            kw, plant_source[c] = _plants_of(spec)
+            key = json.dumps(kw, sort_keys=True, default=str)
+            groups.setdefault(key, (kw, []))[1].append(spec)
+        for kw, group in groups.values():
+            tasks.append((design_check, (group, kw), {}))
+    n_design = len(tasks)
     keys: list[tuple[str, str, bool]] = []  # (controller, scenario, nominal-only)
     for c, spec in specs.items():
         for s, sc in scens.items():
-            tasks.append(
-                (
-                    (spec, sc, p, model),
-                    {"t_end": t_end, "n_series": n_series, "bode": s == NOMINAL_SCENARIO},
-                )
-            )
+            nom = s == NOMINAL_SCENARIO
+            kw = {
+                "t_end": t_end,
+                "n_series": n_series,
+                "bode": nom,
+                "certificate": nom and certificate,
+            }
+            tasks.append((compare_case, (spec, sc, p, model), kw))
             keys.append((c, s, False))
         if NOMINAL_SCENARIO not in scens:
-            tasks.append(((spec, nominal_sc, p, model), {"t_end": t_end, "bode": True}))
+            kw = {"t_end": t_end, "bode": True, "certificate": certificate}
+            tasks.append((compare_case, (spec, nominal_sc, p, model), kw))
             keys.append((c, NOMINAL_SCENARIO, True))
-    results, n_workers, timing = _run_all(
-        tasks, client=client, workers=workers, progress=progress, run=compare_case
+    out_all, n_workers, timing = _run_all(tasks, client=client, workers=workers, progress=progress)
+    checked: dict[str, dict[str, Any]] = {}
+    for r in out_all[:n_design]:
+        checked.update(r)
+    results = out_all[n_design:]
+    timing["design_checks_s"] = sum(float(r.pop("seconds", 0.0)) for r in checked.values())
+    timing["certificate_s"] = sum(
+        float((r.get("linear") or {}).pop("certificate_s", 0.0)) for r in results
     )
     runs: dict[tuple[str, str], dict[str, Any]] = {}
     nominal: dict[str, Any] = {}
@@ -814,12 +947,17 @@ def compare(
         )
     design: dict[str, Any] = {}
     for c, spec in specs.items():
-        ach = ((spec.to_dict().get("design") or {}).get("achieved")) or None
-        if ach:
-            design[c] = {k: ach.get(k) for k in _DESIGN_KEYS}
-            design[c]["method"] = (spec.to_dict().get("design") or {}).get("method")
-        else:
-            design[c] = None
+        dd = spec.to_dict().get("design") or {}
+        ach = dd.get("achieved") or None
+        rec = dict(checked.get(c) or {})
+        if not design_checks:
+            rec["reason"] = "not checked (design_checks=False)"
+        design[c] = {
+            "method": dd.get("method"),
+            "plant_set_source": plant_source.get(c),
+            **rec,
+            "recorded": {k: ach.get(k) for k in _DESIGN_KEYS} if ach else None,
+        }
     data: dict[str, Any] = {
         "format": "drivetrain_ctrl comparison 1",
         "inputs": {
@@ -832,12 +970,22 @@ def compare(
             "t_end_s": t_end,
             "weights": w,
             "n_series": n_series,
+            "design_checks": design_checks,
+            "certificate": certificate,
         },
         "definitions": {
             "criteria": dict(CRITERIA),
             "jerk_limit_m_s3": JERK_LIMIT_M_S3,
             "rollback_limit_m": ROLLBACK_LIMIT_M,
             "nominal_scenario": NOMINAL_SCENARIO,
+            "default_plant_set": DEFAULT_PLANT_SET,
+            "certificate": (
+                "the largest friction-slope interval [mu_slope_certified, 0] (of mu/mu0, s/rad) "
+                "for which the nominal slip loop is certified stable for every nonlinear, "
+                "time-varying friction characteristic with its slope in it: the sector "
+                "[0, -k13 mu_slope_certified] (N m s/rad) of the friction feedback "
+                "(design.certificates.clutch_sector_certificate)"
+            ),
             "slip_delay_s": SLIP_DELAY_S,
             "lock_delay_s": LOCK_DELAY_S,
             "slip_fractions": list(SLIP_FRACTIONS),

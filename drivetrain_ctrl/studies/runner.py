@@ -59,7 +59,15 @@ from dask.distributed import WorkerPlugin
 from .case import LINEAR_FIGURES, Case, CaseError, run_case
 from .study import TEXT_METRICS, Criterion, Study, StudyError, load_study, sample_table
 
-__all__ = ["KernelWarmup", "StudyRun", "folder_lock", "read_results", "run_chunk", "run_study"]
+__all__ = [
+    "KernelWarmup",
+    "StudyRun",
+    "dask_client",
+    "folder_lock",
+    "read_results",
+    "run_chunk",
+    "run_study",
+]
 
 RESULTS = "results"
 #: the columns every table has before the parameters
@@ -110,6 +118,62 @@ class KernelWarmup(WorkerPlugin):  # type: ignore[misc]
         from ..sim.warmup import warmup
 
         warmup()
+
+
+#: the local cluster's scheduler HTTP server (health and metrics routes, which Dask starts even
+#: without the dashboard): an ephemeral port on the loopback interface, so that it never asks
+#: for port 8787 ("Port 8787 is already in use" when another cluster holds it)
+_SCHEDULER_HTTP = "127.0.0.1:0"
+
+
+@contextlib.contextmanager
+def dask_client(
+    client: Any = None,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    timing: dict[str, float] | None = None,
+) -> Iterator[Any]:
+    """A ready ``dask.distributed.Client`` with :class:`KernelWarmup` registered (every worker
+    has loaded the kernels when this yields): ``client`` itself (left open), else a client of
+    the running scheduler at ``scheduler`` (closed at the end), else a local cluster of
+    ``workers`` single-threaded worker processes (default: the number of cores; closed at the
+    end), without the dashboard. The kernels are first compiled here when numba's cache lacks
+    them, so that the local workers do not all compile at once. ``timing``: filled with
+    ``startup_s`` (all of the above) and ``shutdown_s`` [s]."""
+    from dask.distributed import Client, LocalCluster
+
+    from ..sim.warmup import ensure_compiled
+
+    tic = time.perf_counter()
+    ensure_compiled()
+    cluster = None
+    own = client is None
+    if client is None:
+        if scheduler is not None:
+            client = Client(scheduler)
+        else:
+            cluster = LocalCluster(
+                n_workers=workers or os.cpu_count() or 1,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                scheduler_kwargs={"dashboard_address": _SCHEDULER_HTTP},
+            )
+            client = Client(cluster)
+    try:
+        client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
+        if timing is not None:
+            timing["startup_s"] = time.perf_counter() - tic
+        yield client
+    finally:
+        t_close = time.perf_counter()
+        if own:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+        if timing is not None:
+            timing["shutdown_s"] = time.perf_counter() - t_close
 
 
 def _as_number(v: Any) -> float:
@@ -446,26 +510,9 @@ def _run_locked(
     n_chunks = 0
     n_workers = 0
     if n_todo:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import as_completed
 
-        from ..sim.warmup import ensure_compiled
-
-        ensure_compiled()  # compile once here (a notice), not on every local worker at once
-        cluster = None
-        own_client = client is None
-        if client is None:
-            if scheduler is not None:
-                client = Client(scheduler)
-            else:
-                cluster = LocalCluster(
-                    n_workers=workers or os.cpu_count() or 1,
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                )
-                client = Client(cluster)
-        try:
-            client.register_plugin(KernelWarmup(), name=KernelWarmup.name)
+        with dask_client(client, workers=workers, scheduler=scheduler) as client:
             n_workers = max(1, len(client.scheduler_info().get("workers", {})))
             size = chunk_size or max(1, min(32, math.ceil(n_todo / (4 * n_workers))))
             # the chunks are made and submitted as the earlier ones finish: at most WINDOW per
@@ -504,11 +551,6 @@ def _run_locked(
                     bar.set_postfix(failed=failed, remaining=remaining, refresh=False)
                     bar.update(len(rows))
                     del rows, fut
-        finally:
-            if own_client:
-                client.close()
-            if cluster is not None:
-                cluster.close()
     n_rows, n_failed, n_pass = _counts(out)
     return StudyRun(
         out=out,
