@@ -5,7 +5,7 @@ here): the Bode overlay of L and S of every controller at its nominal slip point
 in lock mode the clutch loop is open and has no Bode diagram, which the page says), one figure of
 time responses per scenario (engine and primary-shaft speed, pedal, clutch torque, vehicle
 acceleration, with the engine-speed reference; every controller in each, named in the legend), and the tables: verdict (with the
-reasoning), linear figures (nominal and per scenario, and the design's recorded worst case),
+reasoning), linear figures (nominal and per scenario, and the design's worst case over its plant set, recomputed, and the certified sector),
 switching-plant metrics with pass/fail, linear against nonlinear, and what was left out.
 
 :func:`write_compare_report` writes ``compare.html`` (figures as embedded PNGs, tables sortable
@@ -21,15 +21,12 @@ does when Chromium is installed)::
 
 from __future__ import annotations
 
-import base64
-import html
-import io
-import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .document import Section, data_json_text, html_page, pdf_blocks, write_data_json
 from .figures import write_report_pdf
 
 __all__ = [
@@ -74,7 +71,6 @@ _MARGINS: tuple[tuple[str, str], ...] = (
     ("stable", "stable"),
 )
 _DESIGN: tuple[tuple[str, str], ...] = (
-    ("method", "design"),
     ("n_plants", "plants"),
     ("ms_max", "Ms max"),
     ("mt_max", "Mt max"),
@@ -87,7 +83,6 @@ _DESIGN: tuple[tuple[str, str], ...] = (
 )
 
 Table = tuple[str, list[list[str]]]
-Section = tuple[str, list[str], list[Table], list[str]]
 
 
 def _fmt(v: Any) -> str:
@@ -219,14 +214,60 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
             rows.append([c] + [why] + ["-"] * (len(_MARGINS) - 1))
         else:
             rows.append([c] + [_fmt(slip.get(k)) for k, _ in _MARGINS])
-    drows = [["controller"] + [lab for _, lab in _DESIGN]]
+    drows = [["controller", "plant set", "figures"] + [lab for _, lab in _DESIGN]]
+    sets: list[str] = []
     for c in ctrls:
-        d = data["design"].get(c)
-        if d is None:
-            drows.append([c, "not recorded (no [design.achieved] table in the controller file)"])
-            drows[-1] += ["-"] * (len(_DESIGN) - 1)
+        d = data["design"].get(c) or {}
+        if d.get("plant_set") and d["plant_set"] not in sets:
+            sets.append(d["plant_set"])
+        tag = f"set {sets.index(d['plant_set']) + 1}" if d.get("plant_set") else "-"
+        if d.get("worst") is None:
+            drows.append([c, tag, d.get("reason") or "not checked"] + ["-"] * len(_DESIGN))
         else:
-            drows.append([c] + [_fmt(d.get(k)) for k, _ in _DESIGN])
+            for what, fig in (("worst case", d["worst"]), ("nominal", d.get("nominal"))):
+                drows.append([c, tag, what] + [_fmt((fig or {}).get(k)) for k, _ in _DESIGN])
+        rec = d.get("recorded")
+        if rec:
+            drows.append(
+                [c, "as designed", f"recorded ({d.get('method')})"]
+                + [_fmt(rec.get(k)) for k, _ in _DESIGN]
+            )
+    set_paras = [f"Set {i + 1}: {t}" for i, t in enumerate(sets)] + [
+        f"{c}: checked over {(data['design'].get(c) or {}).get('plant_set_source')}."
+        for c in ctrls
+        if (data["design"].get(c) or {}).get("plant_set_source")
+    ]
+    crows = [
+        [
+            "controller",
+            "certified mu' [s/rad]",
+            "sector [N m s/rad]",
+            "linear limit mu' [s/rad]",
+            "judder threshold [s/rad]",
+            "certified / threshold",
+        ]
+    ]
+    for c in ctrls:
+        slip = (data["nominal_linear"].get(c) or {}).get("slip") or {}
+        ce = slip.get("certificate")
+        if ce is None:
+            crows.append([c, "not computed"] + ["-"] * 4)
+        elif ce.get("mu_slope_certified") is None:
+            crows.append([c, ce.get("reason") or "-"] + ["-"] * 4)
+        else:
+            jt = ce.get("judder_closed_form")
+            jt = ce.get("judder_numeric") if jt is None else jt
+            sec = ce.get("sector_N_m_s_rad") or [None, None]
+            crows.append(
+                [
+                    c,
+                    _fmt(ce["mu_slope_certified"]),
+                    f"[{_fmt(sec[0])}, {_fmt(sec[1])}]",
+                    _fmt(ce.get("mu_slope_linear")),
+                    _fmt(jt),
+                    _fmt(ce.get("ratio")),
+                ]
+            )
     fr = "/".join(f"{f:g}" for f in dfn["slip_fractions"])
     srows = [["controller", "scenario", "t slip point [s]", "slip [rad/s]"]]
     srows[0] += [lab for _, lab in _MARGINS] + [f"stable at slip x {fr}"]
@@ -279,8 +320,14 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
         "no margins and no Bode diagram; at the lock point (the run "
         f"{dfn['lock_delay_s']:g} s after lock-up) the locked driveline's lowest "
         "shuffle mode and the clutch's torque margin to breakaway.",
-        "Design worst case: the figures the design tool recorded over its plant set (the "
-        "controller file's [design.achieved] table), not recomputed here.",
+        "Design plant set: each controller checked here over its design's plant set (rebuilt "
+        "from the controller file's design spec; a controller without one over the default set, "
+        f"the built-in design spec {dfn.get('default_plant_set')!r}'s plants): the worst case "
+        "over every plant and over the nominal-parameter plants; a designed controller's "
+        "figures as its file records them ([design.achieved]) beside them.",
+        *set_paras,
+        f"Certified sector: {dfn.get('certificate')}; beside it the linear limit (a constant "
+        "slope) and the judder threshold, at the nominal slip point.",
     ]
     out.append(
         (
@@ -288,7 +335,8 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
             paras,
             [
                 ("Nominal slip loop", rows),
-                ("Design plant set, worst case (as recorded)", drows),
+                ("Design plant set: worst case and nominal (recomputed), and as recorded", drows),
+                ("Certified friction-slope sector (nominal slip loop)", crows),
                 ("Slip loop per scenario", srows),
                 ("Lock mode per scenario", lrows),
             ],
@@ -376,56 +424,8 @@ document.querySelectorAll("table.sortable").forEach(function (table) {
 </script>"""
 
 
-def _png(fig: Any) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _html(data: Mapping[str, Any], sections: Sequence[Section], figs: Mapping[str, Any]) -> str:
-    e = html.escape
-    title = f"Controller comparison ({data['inputs']['model']} model)"
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{e(title)}</title>",
-        _STYLE,
-        "</head><body>",
-        f"<h1>{e(title)}</h1>",
-    ]
-    for stitle, paras, tables, fnames in sections:
-        parts.append(f"<h2>{e(stitle)}</h2>")
-        parts += [f"<p>{e(p)}</p>" for p in paras]
-        for caption, rows in tables:
-            parts.append(f'<table class="sortable"><caption>{e(caption)}</caption><thead><tr>')
-            parts += [f"<th>{e(h)}</th>" for h in rows[0]]
-            parts.append("</tr></thead><tbody>")
-            for r in rows[1:]:
-                parts.append("<tr>" + "".join(f"<td>{e(x)}</td>" for x in r) + "</tr>")
-            parts.append("</tbody></table>")
-        for f in fnames:
-            if f in figs:
-                parts.append(
-                    f'<figure><img alt="{e(f)}" src="data:image/png;base64,{_png(figs[f])}">'
-                    "</figure>"
-                )
-    parts += [_SORT_JS, "</body></html>"]
-    return "\n".join(parts) + "\n"
-
-
-def _pdf(
-    data: Mapping[str, Any], sections: Sequence[Section], figs: Mapping[str, Any], path: Path
-) -> None:
-    blocks: list[tuple[Any, ...]] = [
-        ("h1", f"Controller comparison ({data['inputs']['model']} model)")
-    ]
-    for stitle, paras, tables, fnames in sections:
-        blocks.append(("h2", stitle))
-        blocks += [("p", p) for p in paras]
-        blocks += [("table", cap, rows) for cap, rows in tables]
-        blocks += [("figure", figs[f]) for f in fnames if f in figs]
-    write_report_pdf(blocks, path, header="drivetrain_ctrl controller comparison")
+def _title(data: Mapping[str, Any]) -> str:
+    return f"Controller comparison ({data['inputs']['model']} model)"
 
 
 @dataclass(frozen=True)
@@ -442,12 +442,6 @@ class CompareReport:
         return tuple(p for p in (self.html, self.pdf, self.data) if p is not None)
 
 
-def data_json_text(data: Mapping[str, Any]) -> str:
-    """The text of ``data.json``: keys sorted, indent 1, NaN refused (the same data, the same
-    bytes)."""
-    return json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
-
-
 def write_compare_report(
     data: Mapping[str, Any], out: str | Path, *, pdf: bool = True
 ) -> CompareReport:
@@ -456,11 +450,15 @@ def write_compare_report(
     (``pdf`` None when not written)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "data.json").write_text(data_json_text(data), encoding="utf-8")
+    write_data_json(data, out / "data.json")
     figs = compare_figures(data)
     sections = compare_sections(data)
-    (out / "compare.html").write_text(_html(data, sections, figs), encoding="utf-8")
+    page = html_page(
+        _title(data), _title(data), sections, figs, style=_STYLE, sortable=True, script=_SORT_JS
+    )
+    (out / "compare.html").write_text(page, encoding="utf-8")
     if not pdf:
         return CompareReport(out / "compare.html", None, out / "data.json")
-    _pdf(data, sections, figs, out / "compare.pdf")
+    blocks = pdf_blocks(_title(data), sections, figs)
+    write_report_pdf(blocks, out / "compare.pdf", header="drivetrain_ctrl controller comparison")
     return CompareReport(out / "compare.html", out / "compare.pdf", out / "data.json")

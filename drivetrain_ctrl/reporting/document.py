@@ -17,7 +17,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["Section", "html_page", "pdf_blocks", "png_base64", "write_data_json"]
+__all__ = [
+    "Section",
+    "data_json_text",
+    "html_page",
+    "pdf_blocks",
+    "png_base64",
+    "write_data_json",
+]
 
 #: one section: title, paragraphs, tables ``(caption, rows)``, names of its figures
 Section = tuple[str, list[str], list[tuple[str, list[list[str]]]], list[str]]
@@ -29,10 +36,15 @@ _STYLE = (
 )
 
 
+def data_json_text(data: Mapping[str, Any]) -> str:
+    """The text of ``data.json``: keys sorted, indent 1, NaN refused (the same data gives the
+    same bytes)."""
+    return json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
+
+
 def write_data_json(data: Mapping[str, Any], path: Path) -> Path:
-    """Write ``data`` as JSON to ``path`` (keys sorted, indent 1, NaN refused)."""
-    text = json.dumps(data, sort_keys=True, indent=1, allow_nan=False) + "\n"
-    path.write_text(text, encoding="utf-8")
+    """Write ``data`` as JSON to ``path`` (:func:`data_json_text`)."""
+    path.write_text(data_json_text(data), encoding="utf-8")
     return path
 
 
@@ -44,16 +56,29 @@ def png_base64(fig: Any, dpi: int = 90) -> str:
 
 
 def html_page(
-    title: str, heading: str, sections: Sequence[Section], figs: Mapping[str, Any]
+    title: str,
+    heading: str,
+    sections: Sequence[Section],
+    figs: Mapping[str, Any],
+    *,
+    style: str | None = None,
+    sortable: bool = False,
+    script: str = "",
 ) -> str:
     """A self-contained HTML page: ``heading``, then each section's paragraphs, tables and
-    figures (embedded PNGs)."""
+    figures (embedded PNGs; a section may name a figure ``figs`` lacks: left out).
+
+    ``style``: a ``<style>`` element instead of the default one; ``sortable``: every table gets
+    ``class="sortable"``, its header row a ``<thead>`` and its rows a ``<tbody>`` and the page a
+    viewport line (for ``script``, e.g. one sorting the rows on a click on a heading);
+    ``script``: appended to the body as it is (a ``<script>`` element)."""
     e = html.escape
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
+        *(['<meta name="viewport" content="width=device-width, initial-scale=1">'] * sortable),
         f"<title>{e(title)}</title>",
-        _STYLE,
+        _STYLE if style is None else style,
         "</head><body>",
         f"<h1>{e(heading)}</h1>",
     ]
@@ -61,13 +86,21 @@ def html_page(
         parts.append(f"<h2>{e(stitle)}</h2>")
         parts += [f"<p>{e(p)}</p>" for p in paras]
         for cap, rows in tables:
-            parts.append(f"<table><caption>{e(cap)}</caption>")
-            parts.append("<tr>" + "".join(f"<th>{e(c)}</th>" for c in rows[0]) + "</tr>")
-            for r in rows[1:]:
-                parts.append("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>")
+            head = "<tr>" + "".join(f"<th>{e(c)}</th>" for c in rows[0]) + "</tr>"
+            body = ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in rows[1:]]
+            if sortable:
+                parts.append(f'<table class="sortable"><caption>{e(cap)}</caption>')
+                parts += [f"<thead>{head}</thead><tbody>", *body, "</tbody>"]
+            else:
+                parts += [f"<table><caption>{e(cap)}</caption>", head, *body]
             parts.append("</table>")
         for f in fnames:
-            parts.append(f'<img alt="{e(f)}" src="data:image/png;base64,{png_base64(figs[f])}">')
+            if f in figs:
+                parts.append(
+                    f'<img alt="{e(f)}" src="data:image/png;base64,{png_base64(figs[f])}">'
+                )
+    if script:
+        parts.append(script)
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"
 
@@ -85,7 +118,7 @@ def pdf_blocks(
         for cap, rows in tables:
             blocks.append(("table", cap, rows))
         for f in fnames:
-            if f not in placed:
+            if f in figs and f not in placed:
                 blocks.append(("figure", figs[f]))
                 placed.append(f)
     rest = [f for f in figs if f not in placed]

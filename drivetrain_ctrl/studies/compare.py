@@ -21,9 +21,11 @@ Per controller and scenario (one worker task each):
 * the linear figures of the clutch slip loop at the scenario's slip operating point
   (:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`: the run
   :data:`~drivetrain_ctrl.linear.operating_point.SLIP_DELAY_S` after the controller start):
-  gain, phase, delay and disk margins, Ms, Mt, bandwidth, closed-loop stability
+  gain, phase and disk margins, Ms, crossover, closed-loop stability and the judder margin as a
+  study row has them (:func:`~drivetrain_ctrl.studies.case.linear_figures`, the one function
+  for them), and the delay margin, Mt, bandwidth and closed-loop poles
   (:func:`~drivetrain_ctrl.linear.margins.loop_margins` of
-  :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`). In lock mode the clutch loop is open
+  :func:`~drivetrain_ctrl.linear.clutch.clutch_loop` at the same point). In lock mode the clutch loop is open
   (x_c does not change the transmitted torque of a stuck clutch): no margins, said so; at the
   lock point (the run :data:`LOCK_DELAY_S` after lock-up) the locked driveline's shuffle modes
   and the clutch's torque margin to breakaway
@@ -97,7 +99,7 @@ from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
 from ..scenarios.scenario import Scenario, builtin_scenarios, load_scenario
 from ..sim.metrics import state_accelerations
 from ..sim.simulator import ZenoError
-from .case import MODELS, Case, CaseError, simulate_case
+from .case import MODELS, Case, CaseError, linear_figures, simulate_case
 
 __all__ = [
     "BODE_GRID_RAD_S",
@@ -305,6 +307,13 @@ def _linear(run: Any, bode: bool, certificate: bool = False) -> dict[str, Any]:
         "lock": lock,
         "lock_reason": lock_reason,
     }
+    from ..design.checks import disk_figures  # the design package loads cvxpy: only here
+
+    # the figures a study row has: the one function (studies.case.linear_figures)
+    fig = linear_figures(run.result, run.drivetrain, run.controller, start=run.scenario.start_time)
+    if fig.get("lin:t_s") is None or fig.get("lin:stable") is None:
+        out["slip_reason"] = fig.get("linear_note") or "no slip loop"
+        return out
     try:
         op = slip_point_after_start(run.result, run.drivetrain, run.scenario.start_time)
         cl = clutch_loop(op, run.controller)
@@ -313,6 +322,23 @@ def _linear(run: Any, bode: bool, certificate: bool = False) -> dict[str, Any]:
         out["slip_reason"] = f"no slip loop: {exc}"
         return out
     slip = {k: lm.get(k) for k in _MARGIN_KEYS}
+    gm = fig["lin:gain_margin"]
+    alpha = fig["lin:disk_margin"]
+    slip.update(
+        gain_margin_db=None if gm is None or not gm > 0 else 20.0 * math.log10(gm),
+        phase_margin_deg=fig["lin:phase_margin_deg"],
+        disk_margin=alpha,
+        ms=fig["lin:Ms"],
+        crossover_rad_s=fig["lin:crossover_rad_s"],
+        stable=bool(fig["lin:stable"]),
+    )
+    if alpha is not None:
+        slip["disk_margin_db"], slip["disk_margin_deg"] = disk_figures(alpha)
+    slip["judder"] = {
+        k.removeprefix("lin:"): fig.get(k)
+        for k in ("lin:mu_slope", "lin:mu_slope_crit", "lin:judder_margin")
+    }
+    slip["linear_note"] = fig.get("linear_note")
     slip["reasons"] = lm.get("reasons") or {}
     slip["operating_point"] = {
         "t_s": float(op.t or 0.0),
