@@ -139,3 +139,13 @@ def test_as_plant_set_names_and_delays() -> None:
     fr = s2.freqresp([1.0, 2.0])
     assert fr.shape == (2, 2)
     assert fr[1, 1] == pytest.approx(complex(P2(2j)) * np.exp(-0.6j), rel=1e-13)
+
+
+def test_a_pole_at_round_off_distance_from_zero_is_an_integrator() -> None:
+    # poles -10 and -5e-10 rad/s: the second is below 1e-9 of the largest, no feature
+    p = control.tf([1.0], np.polymul([1.0, 5e-10], [1.0, 10.0]))
+    g = frequency_grid(p, n=10)
+    assert g[0] == pytest.approx(0.1, rel=1e-12) and g[-1] == pytest.approx(1000.0, rel=1e-12)
+    # 5e-8 rad/s is above that: the grid reaches two decades below it
+    p2 = control.tf([1.0], np.polymul([1.0, 5e-8], [1.0, 10.0]))
+    assert frequency_grid(p2, n=10)[0] == pytest.approx(5e-10, rel=1e-6)

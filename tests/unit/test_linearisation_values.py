@@ -126,3 +126,25 @@ def test_shuffle_mode_figures() -> None:
     assert m.natural_frequency_hz == pytest.approx(5.0 / (2.0 * math.pi), rel=1e-15)
     assert m.damped_frequency_hz == pytest.approx(4.0 / (2.0 * math.pi), rel=1e-15)
     assert m.damping == pytest.approx(0.6, rel=1e-15)
+
+
+def test_visited_mode_durations_add_up_to_the_run() -> None:
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+    from drivetrain_ctrl.sim.run import run_scenario
+
+    sc = load_scenario("paper-start")
+    dtr = sc.drivetrain(default_params(), kind="reduced")
+    res = run_scenario(sc, dtr, controller="paper")
+    vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
+    t = np.asarray(res.t)
+    # every sample interval belongs to the mode of its first sample: the durations tile the run
+    assert sum(v.duration_s for v in vm) == pytest.approx(t[-1] - t[0], rel=1e-12)
+    durations = [v.duration_s for v in vm]
+    assert durations == sorted(durations, reverse=True)
+    # a minimum duration drops exactly the shorter modes
+    cut = durations[1]
+    assert [
+        v.duration_s for v in linearise_visited_modes(res, drivetrain=dtr, min_duration=cut)
+    ] == [d for d in durations if d >= cut]
