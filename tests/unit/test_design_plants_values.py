@@ -149,3 +149,8 @@ def test_a_pole_at_round_off_distance_from_zero_is_an_integrator() -> None:
     # 5e-8 rad/s is above that: the grid reaches two decades below it
     p2 = control.tf([1.0], np.polymul([1.0, 5e-8], [1.0, 10.0]))
     assert frequency_grid(p2, n=10)[0] == pytest.approx(5e-10, rel=1e-6)
+
+
+def test_equal_grid_ends_are_rejected() -> None:
+    with pytest.raises(ValueError, match="w_min = 10.0 rad/s must be < w_max = 10.0 rad/s"):
+        frequency_grid(P2, w_min=10.0, w_max=10.0)
