@@ -132,6 +132,7 @@ __all__ = [
     "spec_from_lti",
     "LAWS",
     "GAIN_RANGE",
+    "STABILITY_CACHE_SIZE",
 ]
 
 #: control laws a spec can name
@@ -509,16 +510,33 @@ class ControllerSpec:
 
     def check_stability(self, params: DrivetrainParams) -> tuple[bool, list[complex]]:
         """Closed-loop poles of the slip-mode loop (:func:`slip_loop`) at x_c = x_r0; returns
-        ``(stable, poles)`` and warns :class:`UnstableLoopWarning` if unstable. The simulation
-        still runs: the warning only says what to expect."""
-        L = slip_loop(self, params)
-        poles = [complex(p) for p in np.atleast_1d(control.poles(control.feedback(L, 1)))]
-        if L.isdtime(strict=True):
+        ``(stable, poles)`` and warns :class:`UnstableLoopWarning` if unstable (on every call).
+        The simulation still runs: the warning only says what to expect.
+
+        The poles are kept for the last :data:`STABILITY_CACHE_SIZE` keys of what the loop
+        depends on (this spec; of ``params`` the clutch capacity slope at x_r0, ``J_1``, ``b_1``
+        and the actuator's ``omega_a``, ``delta_a``), so a batch that builds the same controller
+        on the same values again (a study's scenarios, parameters the loop does not read) finds
+        them instead of rebuilding the loop."""
+        key = _stability_key(self, params)
+        hit = None if key is None else _STABILITY_CACHE.get(key)
+        if hit is None:
+            L = slip_loop(self, params)
+            disc = bool(L.isdtime(strict=True))
+            ps = tuple(complex(p) for p in np.atleast_1d(control.poles(control.feedback(L, 1))))
+            hit = (disc, ps)
+            if key is not None:
+                _STABILITY_CACHE[key] = hit
+                while len(_STABILITY_CACHE) > STABILITY_CACHE_SIZE:
+                    del _STABILITY_CACHE[next(iter(_STABILITY_CACHE))]
+        disc, ps = hit
+        poles = list(ps)
+        if disc:
             stable = all(abs(p) < 1.0 for p in poles)
         else:
             stable = all(p.real < 0.0 for p in poles)
         if not stable:
-            worst = max(poles, key=lambda p: abs(p) if L.isdtime(strict=True) else p.real)
+            worst = max(poles, key=lambda p: abs(p) if disc else p.real)
             warnings.warn(
                 f"controller {self.name!r}: the slip-mode loop is unstable at x_c = x_r0 "
                 f"(closed-loop pole {worst:.4g}); the simulation runs, expect oscillation or "
@@ -680,6 +698,24 @@ def _engaged_position(params: DrivetrainParams) -> float:
     table = clutch_friction(params).capacity_table
     assert table is not None
     return float(table.x[0])
+
+
+#: how many slip-loop stability checks :meth:`ControllerSpec.check_stability` keeps
+STABILITY_CACHE_SIZE: int = 256
+_STABILITY_CACHE: dict[Any, tuple[bool, tuple[complex, ...]]] = {}
+
+
+def _stability_key(spec: ControllerSpec, params: DrivetrainParams) -> Any:
+    """What :func:`slip_loop` reads (the spec; of ``params``: the clutch capacity slope at x_r0,
+    J_1, b_1, omega_a, delta_a), hashable; None if the spec cannot be hashed."""
+    act = params.actuator
+    slope = abs(clutch_friction(params).capacity_slope(spec.offset_x_r0, side="right"))
+    key = (spec, slope, params.engine.J1, params.engine.b1, act.omega_a, act.delta_a)
+    try:
+        hash(key)
+    except TypeError:
+        return None
+    return key
 
 
 def slip_loop(spec: ControllerSpec, params: DrivetrainParams) -> control.TransferFunction:

@@ -180,37 +180,10 @@ def clutch_loop(
     x_c to omega_1 and cancel); with ``mu_slope`` they couple in. A discrete controller is
     analysed in discrete time (ZOH-discretised plant, ``z^-d`` for the delay).
     """
-    _require_slip(op, "clutch_loop")
-    require_controller(controller, "clutch_loop")
-    if controller.output != "pedal":
-        raise ValueError(f"controller.output = {controller.output!r}: must drive 'pedal'")
-    es = engine_side(op, mu_slope=mu_slope)
-    sys = linearise(op, inputs=("throttle", "x_c"), mu_slope=mu_slope)
-    meas = None
-    for coef, src in controller.measurement:
-        if src == "ref":
-            continue
-        if src not in sys.output_labels:
-            raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
-        Pk = _siso(sys, "x_c", src) * float(coef)
-        meas = Pk if meas is None else meas + Pk
-    if meas is None:
-        raise ValueError("controller.measurement: has no plant state (only 'ref')")
-    P = control.ss(meas * _error_chain(controller, op))
+    es, P_use, L_ss, Lt = _loop_parts(op, controller, mu_slope=mu_slope, what="clutch_loop")
     C = controller.lti
     disc = controller.is_discrete
-    if disc:
-        Ts = float(C.dt)
-        Pd = control.sample_system(P, Ts, method="zoh")
-        if controller.delay_samples:
-            zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
-            Pd = control.ss(Pd * control.ss(zd))
-        P_use = Pd
-    else:
-        Ts = None
-        P_use = P
-    L_ss = control.ss(C * P_use)
-    Lt = _tf_min(L_ss)
+    Ts = float(C.dt) if disc else None
     one = control.tf([1.0], [1.0], Ts) if disc else control.tf([1.0], [1.0])
     S = control.minreal(one / (one + Lt), verbose=False)
     T = control.minreal(Lt / (one + Lt), verbose=False)
@@ -241,6 +214,55 @@ def clutch_loop(
     )
 
 
+def clutch_loop_gain(
+    op: OperatingPoint, controller: Controller, *, mu_slope: float | None = None
+) -> tuple[EngineSide, control.TransferFunction]:
+    """The engine side at ``op`` and the loop gain ``L`` of :func:`clutch_loop` (the same
+    transfer function), without the loop's other transfer functions (S, T, PS, CS, the
+    pedal-to-acceleration path): for callers that need only ``L``, such as a study's paired
+    linear figures."""
+    es, _P, _L_ss, Lt = _loop_parts(op, controller, mu_slope=mu_slope, what="clutch_loop_gain")
+    return es, Lt
+
+
+def _loop_parts(
+    op: OperatingPoint, controller: Controller, *, mu_slope: float | None, what: str
+) -> tuple[EngineSide, Any, control.StateSpace, control.TransferFunction]:
+    """(engine side, plant seen by the controller, ``L`` as state space, ``L`` minimal transfer
+    function) of :func:`clutch_loop`."""
+    _require_slip(op, what)
+    require_controller(controller, what)
+    if controller.output != "pedal":
+        raise ValueError(f"controller.output = {controller.output!r}: must drive 'pedal'")
+    es = engine_side(op, mu_slope=mu_slope)
+    sys = linearise(op, inputs=("throttle", "x_c"), mu_slope=mu_slope)
+    meas = None
+    for coef, src in controller.measurement:
+        if src == "ref":
+            continue
+        if src not in sys.output_labels:
+            raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
+        Pk = _siso(sys, "x_c", src) * float(coef)
+        meas = Pk if meas is None else meas + Pk
+    if meas is None:
+        raise ValueError("controller.measurement: has no plant state (only 'ref')")
+    P = control.ss(meas * _error_chain(controller, op))
+    C = controller.lti
+    disc = controller.is_discrete
+    if disc:
+        Ts = float(C.dt)
+        Pd = control.sample_system(P, Ts, method="zoh")
+        if controller.delay_samples:
+            zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
+            Pd = control.ss(Pd * control.ss(zd))
+        P_use = Pd
+    else:
+        Ts = None
+        P_use = P
+    L_ss = control.ss(C * P_use)
+    return es, P_use, L_ss, _tf_min(L_ss)
+
+
 def _error_chain(controller: Controller, op: OperatingPoint) -> control.StateSpace:
     """Controller output -> x_c: ``-sgn`` (the sign block; the minus sign turns the loop into
     negative feedback), rate limiter (linear range) and actuator."""
@@ -265,8 +287,11 @@ def slip_mode_poles(
     return _slip_mode_poles_of(linearise(op, inputs=("x_c",), mu_slope=mu_slope), op, controller)
 
 
-def _measured_plant(sys: control.StateSpace, controller: Controller) -> control.StateSpace:
-    """x_c -> the measured part of the controller's error (every state of ``sys`` kept)."""
+def _measurement_rows(
+    sys: control.StateSpace, controller: Controller
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(Cm, Dm)``: the output row and feedthrough of x_c -> the measured part of the
+    controller's error, from the plant ``sys`` (input ``x_c``)."""
     Cm = np.zeros((1, sys.nstates))
     Dm = np.zeros((1, 1))
     for coef, src in controller.measurement:
@@ -277,22 +302,61 @@ def _measured_plant(sys: control.StateSpace, controller: Controller) -> control.
         o = list(sys.output_labels).index(src)
         Cm += coef * sys.C[[o], :]
         Dm += coef * sys.D[[o], :]
+    return Cm, Dm
+
+
+def _measured_plant(sys: control.StateSpace, controller: Controller) -> control.StateSpace:
+    """x_c -> the measured part of the controller's error (every state of ``sys`` kept)."""
+    Cm, Dm = _measurement_rows(sys, controller)
     return control.ss(sys.A, sys.B, Cm, Dm)
 
 
-def _slip_mode_poles_of(
+def _negative_feedback_matrix(
+    A: NDArray[np.float64],
+    B: NDArray[np.float64],
+    Cm: NDArray[np.float64],
+    Dm: NDArray[np.float64],
+    K: control.StateSpace,
+) -> NDArray[np.float64]:
+    """State matrix of the SISO plant ``(A, B, Cm, Dm)`` (x_c -> measured error) closed by the
+    SISO controller-and-error-chain ``K`` in negative feedback, ``x_c = -K y`` (as
+    :func:`_slip_mode_matrix`; states: the plant's, then ``K``'s). With ``y = Cm x + Dm x_c`` and
+    ``x_c = -(Ck xk + Dk y)``: ``x_c = -(Dk Cm x + Ck xk)/(1 + Dk Dm)``."""
+    Ak, Bk = np.asarray(K.A, dtype=float), np.asarray(K.B, dtype=float)
+    Ck, Dk = np.asarray(K.C, dtype=float), float(np.asarray(K.D, dtype=float)[0, 0])
+    dm = float(Dm[0, 0])
+    den = 1.0 + Dk * dm
+    if den == 0.0:
+        raise ValueError("the slip-mode loop is algebraic (1 + D_K D_P = 0): no state matrix")
+    n, nk = A.shape[0], Ak.shape[0]
+    Fu = -np.hstack([Dk * Cm, Ck.reshape(1, nk)]) / den  # x_c = Fu [x; xk]
+    top = np.hstack([A, np.zeros((n, nk))]) + B.reshape(n, 1) @ Fu
+    bot = np.hstack([Bk.reshape(nk, 1) @ Cm, Ak]) + Bk.reshape(nk, 1) * dm @ Fu
+    return np.vstack([top, bot])
+
+
+def _slip_mode_matrix(
     sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
-) -> NDArray[np.complex128]:
-    """:func:`slip_mode_poles` from the plant already linearised at ``op`` (input ``x_c``)."""
+) -> NDArray[np.float64]:
+    """The state matrix whose eigenvalues are :func:`slip_mode_poles`, from the plant already
+    linearised at ``op`` (input ``x_c``): the plant's ``A`` (``controller`` None) or the closed
+    loop's."""
     if controller is None:
-        return np.asarray(np.linalg.eigvals(sys.A), dtype=complex)
+        return np.asarray(sys.A, dtype=float)
     if controller.is_discrete:
         raise ValueError("slip_mode_poles: a discrete controller; use clutch_loop(...).closed_loop")
     plant_e = _measured_plant(sys, controller)  # x_c -> measured part of the error
     open_ss = control.ss(controller.lti) * _error_chain(controller, op) * plant_e
     # open_ss maps the error back to the controller input with the sign of the loop: close it
     cl = control.feedback(open_ss, 1, sign=-1)
-    return np.asarray(np.linalg.eigvals(cl.A), dtype=complex)
+    return np.asarray(cl.A, dtype=float)
+
+
+def _slip_mode_poles_of(
+    sys: control.StateSpace, op: OperatingPoint, controller: Controller | None
+) -> NDArray[np.complex128]:
+    """:func:`slip_mode_poles` from the plant already linearised at ``op`` (input ``x_c``)."""
+    return np.asarray(np.linalg.eigvals(_slip_mode_matrix(sys, op, controller)), dtype=complex)
 
 
 @dataclass(frozen=True)
@@ -576,7 +640,7 @@ class JudderCrossing:
     by ``ln(z)/dt``) and ``frequency_hz`` its frequency ``|Im p|/2pi`` (0: a real pole crosses);
     ``frequency_note`` says where a sampled loop's frequency comes from. ``spectral_abscissa_at_zero``
     [1/s] the largest real part at mu' = 0. ``searched`` the interval of mu' [s/rad] searched,
-    ``evaluations`` the number of pole computations. When there is no threshold,
+    ``evaluations`` the number of pole computations (eigenvalue problems). When there is no threshold,
     ``mu_slope_crit``, ``c_crit``, the bracket and the pole are None and ``reason`` says why.
     ``controller`` names the controller (None: pedal held); ``dt`` [s] the sample period of a
     sampled loop (None: continuous)."""
@@ -641,6 +705,49 @@ def _sampled_loop_poles(
     return np.asarray(np.linalg.eigvals(cl.A), dtype=complex)
 
 
+#: relative tolerance of the check that the slip mode's state matrix is affine in mu'
+#: (:func:`_affine_slip_matrix`)
+JUDDER_AFFINE_RTOL: float = 1e-9
+
+
+def _affine_slip_matrix(
+    op: OperatingPoint, controller: Controller | None, limit: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """``(A0, dA)`` with the slip mode's state matrix (:func:`_slip_mode_matrix`, continuous)
+    ``A(mu') = A0 + mu' dA`` over ``[-limit, 0]``, from three linearisations (mu' = 0, ``-limit``
+    and their geometric middle as the check); None when the check fails (the matrix is not
+    affine in mu' to :data:`JUDDER_AFFINE_RTOL`, or its shape changes), and the caller
+    re-linearises at every mu'. The friction slope enters the Jacobian only through the clutch
+    torque's derivative by the slip speed, ``k13 mu'`` times the slip direction, so the matrix
+    is affine in it and one eigenvalue problem per mu' replaces a linearisation."""
+
+    K = None
+    if controller is not None:
+        K = control.ss(controller.lti) * _error_chain(controller, op)  # independent of mu'
+        if K.ninputs != 1 or K.noutputs != 1:
+            return None
+
+    def mat(mu: float) -> NDArray[np.float64]:
+        sys = linearise(op, inputs=("x_c",), mu_slope=mu)
+        A = np.asarray(sys.A, dtype=float)
+        if K is None:
+            return A
+        assert controller is not None
+        Cm, Dm = _measurement_rows(sys, controller)
+        return _negative_feedback_matrix(A, np.asarray(sys.B, dtype=float), Cm, Dm, K)
+
+    A0, A1 = mat(0.0), mat(-limit)
+    mid = -math.sqrt(JUDDER_FIRST_STEP * limit)
+    Am = mat(mid)
+    if A0.shape != A1.shape or A0.shape != Am.shape:
+        return None
+    dA = (A1 - A0) / -limit
+    scale = float(np.max(np.abs(A0))) + abs(mid) * float(np.max(np.abs(dA)))
+    if not np.all(np.abs(A0 + mid * dA - Am) <= JUDDER_AFFINE_RTOL * max(scale, 1e-300)):
+        return None
+    return A0, dA
+
+
 def judder_crossing(
     op: OperatingPoint,
     controller: Controller | None = None,
@@ -660,7 +767,10 @@ def judder_crossing(
     bracket the crossing, which bisection narrows to ``rtol * |mu'|`` (:class:`JudderCrossing`:
     the bracket, its middle and half-width, the crossing pole and its frequency). A pole within
     ``JUDDER_BOUNDARY_TOL`` of the boundary counts as unstable. An unstable window narrower than
-    one grid step before the first unstable grid value would be missed.
+    one grid step before the first unstable grid value would be missed. For a continuous loop
+    (or the plant alone) the state matrix is affine in mu' (:func:`_affine_slip_matrix`, checked
+    at a third slope): three linearisations, then one eigenvalue problem per evaluation; a sampled
+    loop, or a matrix that fails the check, is re-linearised at every evaluation.
 
     No threshold (``mu_slope_crit`` None, with ``reason``): the slip mode is not stable at mu' = 0,
     or it stays stable down to ``-search_limit``. On the reduced model the result agrees with the
@@ -676,11 +786,15 @@ def judder_crossing(
     dt = float(controller.lti.dt) if (controller is not None and disc) else None
     k13 = engine_side(op).k13
     count = 0
+    affine = None if disc else _affine_slip_matrix(op, controller, float(search_limit))
 
     def poles(mu: float) -> NDArray[np.complex128]:
         """Closed-loop poles at mu' = ``mu`` in the s-plane (a sampled loop's mapped by ln z/dt)."""
         nonlocal count
         count += 1
+        if affine is not None:
+            A0, dA = affine
+            return np.asarray(np.linalg.eigvals(A0 + mu * dA), dtype=complex)
         sys = linearise(op, inputs=("x_c",), mu_slope=mu)
         if controller is not None and disc:
             z = _sampled_loop_poles(sys, op, controller)

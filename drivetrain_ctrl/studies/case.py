@@ -40,7 +40,7 @@ from ..control.blocks import Controller
 from ..control.laws import ControllerError, ControllerSpec, builtin_controllers, load_controller
 from ..core.serialize import json_ready
 from ..core.validate import did_you_mean, is_finite_real, reject_unknown
-from ..linear.clutch import _judder_threshold, clutch_loop, judder_crossing
+from ..linear.clutch import EngineSide, _judder_threshold, clutch_loop_gain, judder_crossing
 from ..linear.margins import _auto_grid, loop_margins
 from ..linear.operating_point import OperatingPoint, slip_point_after_start
 from ..plant.drivetrain import Drivetrain
@@ -352,7 +352,9 @@ LINEAR_GRID_POINTS = 300
 LINEAR_JUDDER_RTOL = 1e-4
 
 
-def _judder(op: OperatingPoint, ctrl: Controller, loop: Any) -> tuple[float | None, str]:
+def _judder(
+    op: OperatingPoint, ctrl: Controller, es: EngineSide, L: Any
+) -> tuple[float | None, str]:
     """(mu'_crit [s/rad] or None, how it was found). The closed form (reduced model, continuous
     controller) where it gives a falling-friction threshold; else the numeric first crossing
     going from mu' = 0 towards falling friction (:func:`judder_crossing`). The closed form can
@@ -362,7 +364,7 @@ def _judder(op: OperatingPoint, ctrl: Controller, loop: Any) -> tuple[float | No
     note = ""
     if op.kind == "reduced" and not ctrl.is_discrete:
         try:
-            jt = _judder_threshold(loop.op, loop.engine, loop.L)
+            jt = _judder_threshold(op, es, L)
         except (ValueError, ArithmeticError) as exc:
             note = f"closed form failed ({exc}); "
         else:
@@ -387,7 +389,8 @@ def linear_figures(
     A linear analysis that fails leaves its figures None with the reason in the note; it never
     fails the run, whose metrics stand.
 
-    The slip-mode clutch loop of ``controller`` (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop`:
+    The slip-mode clutch loop of ``controller`` (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop_gain`,
+    the loop gain of :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`:
     actuator, clutch and engine with the driveline coupled in, ``L = C P``, negative feedback) at
     the run's slip operating point (:func:`slip_point_after_start` of ``start``, the controller
     start) on ``drivetrain`` (the case's parameters and model). Gain and phase margins and the
@@ -404,8 +407,8 @@ def linear_figures(
     try:
         op = slip_point_after_start(result, drivetrain, start)
         out["lin:t_s"] = op.t
-        loop = clutch_loop(op, controller)
-        m = loop_margins(loop.L, omega=_auto_grid(loop.L, n=LINEAR_GRID_POINTS).tolist())
+        es, L = clutch_loop_gain(op, controller)
+        m = loop_margins(L, omega=_auto_grid(L, n=LINEAR_GRID_POINTS).tolist())
     except Exception as exc:  # noqa: BLE001 - the run's own figures stand; the reason is kept
         out["linear_note"] = f"no linear figures: {type(exc).__name__}: {exc}"
         return out
@@ -415,7 +418,6 @@ def linear_figures(
     out["lin:Ms"] = m.ms
     out["lin:crossover_rad_s"] = m.crossover_rad_s
     out["lin:stable"] = None if m.stable is None else float(m.stable)
-    es = loop.engine
     notes = [
         f"{k}: {v}"
         for k, v in m.reasons
@@ -424,7 +426,7 @@ def linear_figures(
     mu = es.mu_slope_torque / es.k13 if es.k13 > 0 else None
     out["lin:mu_slope"] = mu
     try:
-        crit, how = _judder(op, controller, loop)
+        crit, how = _judder(op, controller, es, L)
     except Exception as exc:  # noqa: BLE001 - as above
         crit, how = None, f"judder: failed ({type(exc).__name__}: {exc})"
     notes.append(how)

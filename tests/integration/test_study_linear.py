@@ -246,7 +246,7 @@ def test_a_failing_linear_analysis_keeps_the_runs_metrics(monkeypatch: Any) -> N
     def broken(*a: Any, **k: Any) -> Any:
         raise RuntimeError("no loop today")
 
-    monkeypatch.setattr(case_mod, "clutch_loop", broken)
+    monkeypatch.setattr(case_mod, "clutch_loop_gain", broken)
     rec = run_case(Case(scenario="paper-start", model="reduced", controller="pi", linear=True))
     assert rec["status"] == "ok" and rec["lockup_time_s"] is not None
     assert all(rec[k] is None for k in LINEAR_FIGURES if k != "lin:t_s")
