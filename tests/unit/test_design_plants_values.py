@@ -154,3 +154,11 @@ def test_a_pole_at_round_off_distance_from_zero_is_an_integrator() -> None:
 def test_equal_grid_ends_are_rejected() -> None:
     with pytest.raises(ValueError, match="w_min = 10.0 rad/s must be < w_max = 10.0 rad/s"):
         frequency_grid(P2, w_min=10.0, w_max=10.0)
+
+
+def test_the_round_off_floor_is_relative_to_at_least_1_rad_s() -> None:
+    # largest feature 0.5 rad/s: the floor is 1e-9 * max(1, 0.5) = 1e-9; a pole at 1.5e-9 is kept
+    p = control.tf([1.0], np.polymul([1.0, 1.5e-9], [1.0, 0.5]))
+    assert frequency_grid(p, n=10)[0] == pytest.approx(1.5e-11, rel=1e-6)
+    p2 = control.tf([1.0], np.polymul([1.0, 0.5e-9], [1.0, 0.5]))
+    assert frequency_grid(p2, n=10)[0] == pytest.approx(0.005, rel=1e-9)

@@ -148,3 +148,35 @@ def test_visited_mode_durations_add_up_to_the_run() -> None:
     assert [
         v.duration_s for v in linearise_visited_modes(res, drivetrain=dtr, min_duration=cut)
     ] == [d for d in durations if d >= cut]
+
+
+def test_each_visited_mode_is_linearised_in_the_middle_of_its_longest_interval() -> None:
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+    from drivetrain_ctrl.sim.run import run_scenario
+
+    sc = load_scenario("engage-ramp")
+    dtr = sc.drivetrain(default_params(), kind="reduced")
+    res = run_scenario(sc, dtr)
+    t = np.asarray(res.t)
+    keys = [
+        (tuple(f), tuple(r))
+        for f, r in zip(np.asarray(res.fm).tolist(), np.asarray(res.reg).tolist(), strict=True)
+    ]
+    # runs of equal keys; the interval of a run ends at the first sample of the next one (or
+    # at the end); per key the longest interval
+    longest: dict[object, tuple[float, float]] = {}
+    i = 0
+    while i < len(t) - 1:
+        j = i
+        while j + 1 < len(t) - 1 and keys[j + 1] == keys[i]:
+            j += 1
+        t0, t1 = float(t[i]), float(t[j + 1])
+        best = longest.get(keys[i], (0.0, 0.0))
+        if t1 - t0 > best[1] - best[0]:
+            longest[keys[i]] = (t0, t1)
+        i = j + 1
+    vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
+    mids = sorted(0.5 * (a + b) for a, b in longest.values())
+    assert sorted(float(v.op.t) for v in vm) == pytest.approx(mids, rel=1e-12)
