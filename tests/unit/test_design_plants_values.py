@@ -162,3 +162,14 @@ def test_the_round_off_floor_is_relative_to_at_least_1_rad_s() -> None:
     assert frequency_grid(p, n=10)[0] == pytest.approx(1.5e-11, rel=1e-6)
     p2 = control.tf([1.0], np.polymul([1.0, 0.5e-9], [1.0, 0.5]))
     assert frequency_grid(p2, n=10)[0] == pytest.approx(0.005, rel=1e-9)
+
+
+def test_a_nearly_undamped_pair_gets_a_band_of_at_least_1_percent() -> None:
+    # wn = 10 rad/s, zeta = 0.001: 3 zeta = 0.3 % is below the floor, 8 points on 10 +- 0.1
+    light = control.tf([100.0], [1.0, 0.02, 100.0])
+    g = frequency_grid(light, n=30)
+    lo, hi = 0.1, 1000.0
+    expected = _dedup(
+        np.concatenate([np.logspace(-1.0, 3.0, 30), np.linspace(9.9, 10.1, 8), [lo, hi]]), lo, hi
+    )
+    assert np.allclose(g, expected, rtol=1e-12, atol=0.0)
