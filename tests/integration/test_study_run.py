@@ -54,6 +54,11 @@ values = [0.065, 0.07]
 """
 
 
+#: the scheduler's HTTP server (started even without the dashboard) on an ephemeral loopback
+#: port, not 8787 (runner.dask_client does the same)
+_NO_8787 = {"dashboard_address": "127.0.0.1:0"}
+
+
 def _study(tmp: Path, samples: int = 6) -> Path:
     f = tmp / "tiny.toml"
     f.write_text(STUDY.format(samples=samples))
@@ -66,7 +71,11 @@ def local_client() -> Iterator[Any]:
     from dask.distributed import Client, LocalCluster
 
     cluster = LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=1,
+        threads_per_worker=1,
+        processes=False,
+        dashboard_address=None,
+        scheduler_kwargs=_NO_8787,
     )
     client = Client(cluster)
     yield client
@@ -231,7 +240,11 @@ def test_two_worker_processes_a_killed_worker_loses_nothing(tmp_path: Path) -> N
     victim = study.keys()[5]
     run = functools.partial(_kill_once, marker=str(marker), victim=victim)
     cluster = LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        scheduler_kwargs=_NO_8787,
     )
     client = Client(cluster)
     try:
@@ -249,7 +262,13 @@ def test_two_worker_processes_a_killed_worker_loses_nothing(tmp_path: Path) -> N
     # the same table as an uninterrupted in-process run of the same study
     from dask.distributed import Client as C
 
-    with C(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c:
+    with C(
+        processes=False,
+        n_workers=1,
+        threads_per_worker=1,
+        dashboard_address=None,
+        scheduler_kwargs=_NO_8787,
+    ) as c:
         run_study(study, out=tmp_path / "ref", client=c, progress=False)
     pd.testing.assert_frame_equal(df, read_results(tmp_path / "ref"))
 
@@ -282,6 +301,12 @@ def test_the_command_killed_mid_study_resumes_to_the_same_table(tmp_path: Path) 
     assert f"({present} already present)" in resumed.stdout
     from dask.distributed import Client
 
-    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as c:
+    with Client(
+        processes=False,
+        n_workers=1,
+        threads_per_worker=1,
+        dashboard_address=None,
+        scheduler_kwargs=_NO_8787,
+    ) as c:
         run_study(f, out=tmp_path / "ref", client=c, progress=False)
     pd.testing.assert_frame_equal(read_results(out), read_results(tmp_path / "ref"))
