@@ -244,3 +244,16 @@ def test_check_plant_set_uses_the_given_grid_or_one_for_the_whole_set() -> None:
     ref = check_loop(pset[0], C, grid=w_set)
     assert d[0].ms == ref.ms and d[0].ms_frequency_rad_s == ref.ms_frequency_rad_s
     assert d[0].mt_frequency_rad_s == ref.mt_frequency_rad_s
+
+
+def test_the_margins_of_a_delayed_loop_use_every_band_point_of_a_coarse_grid() -> None:
+    # L = e^{-s/2} / s: |L(j1)| = 1 exactly, phase margin 90 - 28.6 deg there; on a grid of
+    # fewer than MARGIN_POINTS band points every point is used, so the crossover is the knot
+    p = Plant(control.tf([1.0], [1.0, 0.0]), delay=0.5)
+    c = check_loop(p, control.tf([1.0], [1.0]), grid=[0.5, 1.0, 2.0])
+    assert c.crossover_rad_s == pytest.approx(1.0, rel=1e-9)
+    assert c.phase_margin_deg == pytest.approx(90.0 - math.degrees(0.5), rel=1e-9)
+    # two band points are enough for an (interpolated) crossover between them
+    c2 = check_loop(p, control.tf([1.0], [1.0]), grid=[0.5, 2.0])
+    assert c2.crossover_rad_s is not None and 0.5 < c2.crossover_rad_s < 2.0
+    assert c2.phase_margin_deg is not None
