@@ -17,7 +17,10 @@ Usage::
    ``in_process_simulate_ms``, ``in_process_case_ms`` (:func:`run_case` without the linear
    figures; ``_nocache``: the per-worker caches off; ``_linear``: with them),
    ``in_process_metrics_ms`` (:func:`engagement_metrics`), ``in_process_controller_ms`` (building
-   the controller, its stability check included) and ``in_process_linear_ms``
+   the controller again for the case just run: its stability check found in
+   :meth:`ControllerSpec.check_stability`'s cache), ``in_process_controller_fresh_ms`` (the same
+   with that cache emptied: the check computed, as in a row whose sample brings new clutch or
+   actuator values) and ``in_process_linear_ms``
    (:func:`linear_figures`), each the median over ``--repeats`` samples of the study.
 3. The driver's memory: the shipped ``paper_start_mc.toml`` (cut to ``--memory-samples``
    samples, 10,000 by default: 20,000 rows) run by :func:`run_study` on ``--workers`` local
@@ -116,13 +119,15 @@ def _timed_study(
 def _in_process(repeats: int) -> dict[str, float]:
     """Median in-process timings [ms] of the parts of a full-model row of the quick study under
     law (6): ``simulate`` (a bare run), ``metrics`` (:func:`engagement_metrics` of it),
-    ``controller`` (building the closed-loop controller, its stability check included),
+    ``controller`` (building the closed-loop controller, its stability check cached),
+    ``controller_fresh`` (the same with the check computed),
     ``linear`` (:func:`linear_figures` of it), ``case`` (:func:`run_case` of a sample's case
     without the linear figures, the per-worker caches on), ``case_nocache`` (the same with the
     caches off) and ``case_linear`` (with the linear figures). Every repeat is another sample of
     the study (as on a worker), and the sample's second controller (PI) runs before law (6)."""
     import dataclasses
 
+    from drivetrain_ctrl.control.laws import _STABILITY_CACHE
     from drivetrain_ctrl.sim.metrics import engagement_metrics
     from drivetrain_ctrl.sim.run import run_scenario
     from drivetrain_ctrl.studies.case import caching, linear_figures, run_case, simulate_case
@@ -132,8 +137,8 @@ def _in_process(repeats: int) -> dict[str, float]:
     df = sample_table(study)
     parts: dict[str, list[float]] = {
         k: []
-        for k in ("simulate", "metrics", "controller", "linear", "case", "case_nocache")
-        + ("case_linear",)
+        for k in ("simulate", "metrics", "controller", "controller_fresh", "linear", "case")
+        + ("case_nocache", "case_linear")
     }
     for i in range(repeats + 1):
         vals = {str(k): float(v) for k, v in df.iloc[i].items()}
@@ -156,6 +161,10 @@ def _in_process(repeats: int) -> dict[str, float]:
         tic = time.perf_counter()
         ctrl = sc.make_controller(dt, run.spec)
         t_ctrl = time.perf_counter() - tic
+        _STABILITY_CACHE.clear()
+        tic = time.perf_counter()
+        sc.make_controller(dt, run.spec)
+        t_ctrl_fresh = time.perf_counter() - tic
         tic = time.perf_counter()
         res = run_scenario(sc, dt, controller=ctrl, t_end=study.t_end)
         t_sim = time.perf_counter() - tic
@@ -171,6 +180,7 @@ def _in_process(repeats: int) -> dict[str, float]:
             ("simulate", t_sim),
             ("metrics", t_met),
             ("controller", t_ctrl),
+            ("controller_fresh", t_ctrl_fresh),
             ("linear", t_lin),
             ("case", t_case),
             ("case_nocache", t_nocache),
@@ -297,6 +307,7 @@ def main() -> None:
         "in_process_case_linear_ms": round(parts["case_linear_ms"], 2),
         "in_process_metrics_ms": round(parts["metrics_ms"], 2),
         "in_process_controller_ms": round(parts["controller_ms"], 2),
+        "in_process_controller_fresh_ms": round(parts["controller_fresh_ms"], 2),
         "in_process_linear_ms": round(parts["linear_ms"], 2),
         "driver_peak_rss_mib": memory[-1]["peak_rss_mib"],
         "driver_memory_runs": memory,
