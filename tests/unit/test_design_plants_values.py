@@ -173,3 +173,17 @@ def test_a_nearly_undamped_pair_gets_a_band_of_at_least_1_percent() -> None:
         np.concatenate([np.logspace(-1.0, 3.0, 30), np.linspace(9.9, 10.1, 8), [lo, hi]]), lo, hi
     )
     assert np.allclose(g, expected, rtol=1e-12, atol=0.0)
+
+
+def test_a_sampled_delay_must_be_a_whole_number_of_samples_to_1e_9() -> None:
+    sys = control.tf([1.0], [1.0, -0.5], 0.1)
+    # k = 1 + 5e-10 samples: a whole sample within 1e-9 (of max(1, k)); z^-1
+    r = Plant(sys, delay=0.1 * (1.0 + 5e-10)).with_pade()
+    z = np.exp(1j * 2.0 * 0.1)
+    assert complex(r(z)) == pytest.approx(1.0 / ((z - 0.5) * z), rel=1e-12)
+    with pytest.raises(ValueError, match="not a multiple of the sample period"):
+        Plant(sys, delay=0.1 * (1.0 + 1.5e-9)).with_pade()
+    # for 20 samples the tolerance is 20e-9 samples
+    Plant(sys, delay=0.1 * 20.0 * (1.0 + 5e-10)).with_pade()
+    with pytest.raises(ValueError, match="not a multiple of the sample period"):
+        Plant(sys, delay=0.1 * 20.0 * (1.0 + 2e-9)).with_pade()
