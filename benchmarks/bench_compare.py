@@ -13,7 +13,11 @@ temporary folder. The machine's load average (``os.getloadavg``) before and afte
 beside the times: on a shared machine it explains much of the spread.
 
 ``startup_s``, ``runs_s``, ``shutdown_s``: the parts of ``wall_s`` (the set-up: the kernels in
-this process, the cluster and the warm-up on its workers; the runs; the cluster's shut-down).
+this process, the cluster and the warm-up on its workers, split into ``startup_cluster_s`` up to
+a connected client and ``startup_warmup_s`` the workers' kernel loading; the runs, with the
+design plant-set checks and the certificates beside them on the workers; the cluster's
+shut-down). ``design_checks_s`` and ``certificate_s``: the worker time the plant-set checks and
+the certified sectors took in all (part of ``runs_s``'s work, spread over the workers).
 
 Writes ``results/compare.json`` (``wall_s``, the parts, ``cases``, ``workers``, ``model``, ``cores``,
 ``load_before``, ``load_after``, ``goal_s`` 60 and whether it was met) and prints it.
