@@ -4,9 +4,12 @@ Renders the ``data`` of :func:`~drivetrain_ctrl.studies.compare.compare` (nothin
 here): the Bode overlay of L and S of every controller at its nominal slip point (the slip mode;
 in lock mode the clutch loop is open and has no Bode diagram, which the page says), one figure of
 time responses per scenario (engine and primary-shaft speed, pedal, clutch torque, vehicle
-acceleration, with the engine-speed reference; every controller in each, named in the legend), and the tables: verdict (with the
-reasoning), linear figures (nominal and per scenario, and the design's worst case over its plant set, recomputed, and the certified sector),
-switching-plant metrics with pass/fail, linear against nonlinear, and what was left out.
+acceleration, with the engine-speed reference; every controller in each, named in the legend),
+and the tables: verdict (with the reasoning), linear figures (nominal and per scenario; the
+worst case and nominal figures over the design's plant set, recomputed, beside the recorded
+ones; the certified friction-slope sector), switching-plant metrics with pass/fail, linear
+against nonlinear, and what was left out. The page, the PDF's blocks and ``data.json`` are
+written by :mod:`drivetrain_ctrl.reporting.document`, as for the other reports.
 
 :func:`write_compare_report` writes ``compare.html`` (figures as embedded PNGs, tables sortable
 by a click on a column heading: a few lines of plain JavaScript), ``compare.pdf`` and

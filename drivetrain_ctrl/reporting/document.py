@@ -1,4 +1,4 @@
-"""The files of a report, shared by the controller report and the study report.
+"""The files of a report, shared by the controller, study and comparison reports.
 
 A report is ``data`` (every number behind every figure), figures drawn from it and sections
 ``(title, paragraphs, tables, figure names)`` (a table is ``(caption, rows)``, the first row the
