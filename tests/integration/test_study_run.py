@@ -7,6 +7,7 @@ processes (their start and kernel loading take tens of seconds on a busy two-cor
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import os
 import signal
@@ -219,6 +220,42 @@ def test_each_pass_column_is_its_own_criterion() -> None:
 
     (row,) = run_chunk([item], [case], metrics, crit, stopped)
     assert not any(row[f"pass:{c.text}"] for c in crit) and row["pass"] is False
+
+
+def test_dask_client_leaves_a_given_client_open(local_client: Any) -> None:
+    """A given client is used as it is (the warm-up plugin registered) and left open."""
+    from drivetrain_ctrl.studies.runner import KernelWarmup, dask_client
+
+    timing: dict[str, float] = {}
+    with dask_client(local_client, timing=timing) as c:
+        assert c is local_client
+        assert c.submit(lambda: 1 + 1, pure=False).result() == 2
+    assert local_client.status == "running"
+    assert KernelWarmup.name in local_client.run_on_scheduler(
+        lambda dask_scheduler: list(dask_scheduler.worker_plugins)
+    )
+    assert set(timing) >= {"startup_s", "startup_cluster_s", "startup_warmup_s", "shutdown_s"}
+
+
+@pytest.mark.slow
+def test_dask_client_local_cluster_without_port_8787_and_closed() -> None:
+    """The local cluster: worker processes forked from the fork server, ready when it yields,
+    no 'Port 8787 is already in use' warning even with port 8787 taken, closed at the end."""
+    import socket
+    import warnings
+
+    from drivetrain_ctrl.studies.runner import dask_client
+
+    with socket.socket() as held:  # port 8787 taken (or already taken by someone else)
+        with contextlib.suppress(OSError):
+            held.bind(("127.0.0.1", 8787))
+            held.listen()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UserWarning)
+            with dask_client(workers=1) as c:
+                assert len(c.scheduler_info()["workers"]) == 1
+                assert c.submit(os.getpid, pure=False).result() != os.getpid()
+    assert c.status == "closed"
 
 
 # -- on a real local cluster of two worker processes -------------------------------------------
