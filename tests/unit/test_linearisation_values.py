@@ -180,3 +180,22 @@ def test_each_visited_mode_is_linearised_in_the_middle_of_its_longest_interval()
     vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
     mids = sorted(0.5 * (a + b) for a, b in longest.values())
     assert sorted(float(v.op.t) for v in vm) == pytest.approx(mids, rel=1e-12)
+
+
+def test_a_mode_held_only_in_the_last_sample_interval_is_visited() -> None:
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+    from drivetrain_ctrl.sim.run import run_scenario
+
+    sc = load_scenario("engage-ramp")
+    dtr = sc.drivetrain(default_params(), kind="reduced")
+    t_lock = run_scenario(sc, dtr).stuck_phases("clutch")[0][0]
+    # stop 20 us after lock-up: the locked mode holds only the run's last sample interval
+    res = run_scenario(sc, dtr, t_end=t_lock + 2e-5)
+    t = np.asarray(res.t)
+    fm = [tuple(r) for r in np.asarray(res.fm).tolist()]
+    assert fm[-1] == fm[-2] != fm[-3]  # the last mode starts at the last-but-one sample
+    vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
+    assert sum(v.duration_s for v in vm) == pytest.approx(t[-1] - t[0], rel=1e-12)
+    assert any("clutch=stuck" in v.label for v in vm)
