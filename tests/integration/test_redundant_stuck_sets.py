@@ -48,7 +48,8 @@ def _linprog_stuck_torques(m: Model, x: np.ndarray, u: np.ndarray, mode: Mode) -
     Minv = np.diag(1.0 / D.M)
     S = G @ Minv @ G.T
     rhs = G @ Minv @ tau
-    lim = np.array([D.f_static[f] * K.capacity(D, int(f), u, reg) for f in stuck])
+    assert np.all(D.f_uidx[stuck] < 0)  # constant capacities here: static ratio times scale
+    lim = D.f_static[stuck] * D.f_scale[stuck]
     k = stuck.shape[0]
     # variables [lam (k), t]: maximise t with t <= lim_f - |lam_f|
     c = np.zeros(k + 1)
@@ -134,7 +135,8 @@ def _pair_lp(m: Model, x: np.ndarray, u: np.ndarray, mode: Mode, sel: list) -> t
     Minv = np.diag(1.0 / D.M)
     S = G @ Minv @ G.T
     rhs = G @ Minv @ tau
-    lim = np.array([D.f_static[f] * K.capacity(D, int(f), u, reg) for f in stuck])
+    assert np.all(D.f_uidx[stuck] < 0)  # constant capacities here: static ratio times scale
+    lim = D.f_static[stuck] * D.f_scale[stuck]
     k = stuck.shape[0]
     c = np.zeros(k + 1)
     c[-1] = -1.0
