@@ -198,3 +198,34 @@ def test_ramp_breaks_away_at_the_sum_of_the_path_capacities(
         mode = Mode(tuple(res.fm[k]), tuple(res.reg[k]))
         if res.fm[k, jf] == K.STUCK and res.t[k] < first:
             assert Tc[k, 0] == pytest.approx(m.stuck_torques(res.x[k], res.u[k], mode)["f"])
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limitation: a coupled redundancy of dimension 2 (three grounded bodies joined by "
+    "stuck clutches) keeps the least-norm stuck torques; only one-dimensional redundancies (or "
+    "independent ones) get the most feasible distribution",
+)
+def test_coupled_two_dimensional_redundancy_holds_within_capacities() -> None:
+    """b0 (2.5 N m) held by g0, g1, g2 (1 N m each) through f01 (2 N m) and f12 (1 N m): g0 1,
+    f01 1.5, g1 0.75, f12 = g2 0.75 holds, but the least-norm distribution puts 5/8 of the
+    torque (1.56 N m) on g0."""
+    fr = lambda nm, s: Friction(scale=s, name=nm)  # noqa: E731
+    bodies = (
+        Body("b0", 1.0, torque_input="T", ground_friction=fr("g0", 1.0)),
+        Body("b1", 1.0, ground_friction=fr("g1", 1.0)),
+        Body("b2", 1.0, ground_friction=fr("g2", 1.0)),
+    )
+    couplings = (
+        Coupling("c0", friction=fr("f01", 2.0)),
+        Coupling("c1", friction=fr("f12", 1.0)),
+    )
+    m = Model(Chain(bodies, couplings, inputs=("T",)))
+    u = np.array([2.5])
+    mode, x = m.decide(np.zeros(m.nx), u)
+    assert set(m.mode_names(mode).values()) == {"stuck"}
+    lam, margin, _ = _linprog_stuck_torques(m, x, u, mode)
+    assert margin >= 0.0
+    got = m.stuck_torques(x, u, mode)
+    stuck = [fi.name for f, fi in enumerate(m.frictions) if mode.fm[f] == K.STUCK]
+    np.testing.assert_allclose([got[nm] for nm in stuck], lam, rtol=1e-9, atol=1e-12)
