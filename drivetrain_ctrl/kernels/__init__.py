@@ -95,6 +95,7 @@ from .physics import (
     rhs_into,
     stored_energy,
     stuck_torques,
+    stuck_torques_rows,
     update_regions,
 )
 from .stability import (
@@ -183,5 +184,6 @@ __all__ = [
     "simulate_kernel",
     "stored_energy",
     "stuck_torques",
+    "stuck_torques_rows",
     "update_regions",
 ]

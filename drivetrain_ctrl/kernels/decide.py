@@ -5,6 +5,13 @@
 over a run) make the same decision with the same functions: classify the elements, project the
 speeds onto the candidates' constraints, then try the stuck / slip+ / slip- combinations, most
 elements stuck first, for consistency.
+
+A combination is consistent if its stuck torques are within the static capacities and its slip
+directions agree with the accelerations. The stuck torques are those of the guards
+(:func:`~drivetrain_ctrl.kernels.physics.stuck_torque`): in a statically indeterminate stuck set
+(a body held by two stuck paths) they are not unique, and the distribution with the largest
+smallest capacity margin is taken, so the decision keeps such a set stuck exactly when some
+distribution within the capacities exists, and its guards fire when none does.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from .physics import (
     forces_into,
     mode_matrices,
     rel_speed,
+    stuck_torque,
     update_regions,
 )
 
@@ -115,7 +123,7 @@ def _mm_insert(D, fm, mmask, mP, mPT, mL, mst):
             mP[s, i, k] = P[i, k]
             mPT[s, k, i] = P[i, k]
     for f in range(Lam.shape[0]):
-        for k in range(n):
+        for k in range(Lam.shape[1]):
             mL[s, f, k] = Lam[f, k]
     return s
 
@@ -123,7 +131,9 @@ def _mm_insert(D, fm, mmask, mP, mPT, mL, mst):
 @jit
 def _mm_alloc(D):
     """Empty mode-matrix cache ``(mmask, mP, mPT, mL, mst)`` (see :func:`_mm_find`): every stuck
-    set fits for up to 10 friction elements."""
+    set fits for up to 10 friction elements. ``mL[s]`` is the extended stuck-torque matrix
+    (nf, n + nf) of :func:`~drivetrain_ctrl.kernels.physics.mode_matrices`: the least-norm map
+    and the basis of the self-balancing stuck torques of a statically indeterminate stuck set."""
     n = D.M.shape[0]
     nf = D.f_kind.shape[0]
     n_slots = 1 << min(nf, 10)
@@ -131,7 +141,7 @@ def _mm_alloc(D):
         np.zeros((n_slots, nf), dtype=np.int64),
         np.empty((n_slots, n, n)),
         np.empty((n_slots, n, n)),
-        np.empty((n_slots, nf, n)),
+        np.empty((n_slots, nf, n + nf)),
         np.zeros(2, dtype=np.int64),
     )
 
@@ -190,10 +200,13 @@ def _dm_classify_core(D, y, u, fm, reg, tol, cand, caps):
 
 
 @jit_inline
-def _consistency_nr(D, fm, cand, caps, P, Lam, tau):
+def _consistency_nr(D, u, fm, reg, cand, caps, P, Lam, tau):
     """Total violation (0 = consistent) of trial mode ``fm`` for the candidate elements: stuck
     torques beyond static capacity, slip directions against the accelerations; from the forces
-    of the trial mode in ``tau`` (no allocation)."""
+    of the trial mode in ``tau`` (no allocation). The stuck torques are
+    :func:`~drivetrain_ctrl.kernels.physics.stuck_torque`'s, as in the guards: in a statically
+    indeterminate stuck set the distribution with the largest smallest capacity margin, so a
+    set that can hold within the capacities is consistent."""
     n = tau.shape[0]
     viol = 0.0
     for f in range(fm.shape[0]):
@@ -201,9 +214,7 @@ def _consistency_nr(D, fm, cand, caps, P, Lam, tau):
             continue
         if fm[f] == STUCK:
             lim = D.f_static[f] * caps[f]
-            lam = 0.0
-            for k in range(n):
-                lam += Lam[f, k] * tau[k]
+            lam = stuck_torque(D, u, fm, reg, Lam, tau, f)[0]
             ex = abs(lam) - lim
             if ex > 0.0:
                 viol += ex / (lim + 1e-300)
@@ -276,7 +287,7 @@ def _dm_combos(D, x, u, fm, reg, nc, cand, caps, idx, trial, tau, prog, mmask, m
                 prog[3] = best_viol
                 return DM_MISS
             forces_into(D, x, u, trial, reg, tau, tau, -1)
-            v = _consistency_nr(D, trial, cand, caps, mP[s], mL[s], tau)
+            v = _consistency_nr(D, u, trial, reg, cand, caps, mP[s], mL[s], tau)
             if v == 0.0:
                 for jj in range(nc):
                     fm[idx[jj]] = trial[idx[jj]]

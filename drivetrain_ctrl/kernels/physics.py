@@ -9,8 +9,10 @@ linearisation and the simulator's hot loop. Conventions (see :mod:`drivetrain_ct
 * friction element mode ``fm[f]``: ``STUCK = 0``, ``SLIP_POS = 1``, ``SLIP_NEG = 2``,
   ``OPEN = 3``; table region ``reg[k]``: index of the affine piece in use;
 * stuck elements are constraints ``G omega = 0``; with ``M a = tau - G^T lam`` the accelerations
-  are ``a = P tau`` and the stuck torques ``lam = Lam tau`` with ``P``, ``Lam`` from
-  :func:`mode_matrices` (the generalisation of the paper's transformation T, eq. (3)-(4));
+  are ``a = P tau`` and the stuck torques ``lam`` follow from ``tau`` and the extended matrix
+  ``Lam`` of :func:`mode_matrices` (the generalisation of the paper's transformation T,
+  eq. (3)-(4)) through :func:`stuck_torque`: in a statically indeterminate stuck set the
+  distribution with the largest smallest capacity margin;
 * guards ``g >= 0`` in the current mode; a sign change to negative is an event.
 """
 
@@ -375,8 +377,86 @@ def _solve_small(S: F64, R: F64) -> F64:
 
 
 @jit
+def _null_basis(G: F64) -> F64:
+    """Basis (k, d) of the null space of ``G^T`` for constraint rows ``G`` (k, n): the
+    self-balancing stuck torques (``G^T v = 0``: no acceleration changes) of a statically
+    indeterminate stuck set; ``d = 0`` if the rows are independent.
+
+    Reduced row echelon form of ``G^T`` (partial pivoting): one basis vector per free column,
+    1 there and minus the pivot rows' entries. Stuck sets that do not share a body give vectors
+    with disjoint supports (elimination keeps the block structure); entries below 1e-12 of the
+    largest are set to exactly 0 so that the supports are exact.
+    """
+    k = G.shape[0]
+    n = G.shape[1]
+    A = G.T.copy()
+    scale = 0.0
+    for i in range(n):
+        for c in range(k):
+            scale = max(scale, abs(A[i, c]))
+    pivcol = np.full(n, -1, dtype=np.int64)
+    isfree = np.zeros(k, dtype=np.int64)
+    r = 0
+    for c in range(k):
+        if r >= n:
+            isfree[c] = 1
+            continue
+        p = r
+        for q in range(r + 1, n):
+            if abs(A[q, c]) > abs(A[p, c]):
+                p = q
+        if abs(A[p, c]) <= 1e-12 * scale:
+            isfree[c] = 1
+            continue
+        if p != r:
+            for j in range(k):
+                A[r, j], A[p, j] = A[p, j], A[r, j]
+        piv = A[r, c]
+        for j in range(k):
+            A[r, j] /= piv
+        for q in range(n):
+            if q != r and A[q, c] != 0.0:
+                fct = A[q, c]
+                for j in range(k):
+                    A[q, j] -= fct * A[r, j]
+        pivcol[r] = c
+        r += 1
+    d = 0
+    for c in range(k):
+        d += isfree[c]
+    N = np.zeros((k, d))
+    j = 0
+    for c in range(k):
+        if not isfree[c]:
+            continue
+        N[c, j] = 1.0
+        for q in range(r):
+            N[pivcol[q], j] = -A[q, c]
+        big = 0.0
+        for i in range(k):
+            big = max(big, abs(N[i, j]))
+        for i in range(k):
+            if abs(N[i, j]) <= 1e-12 * big:
+                N[i, j] = 0.0
+        j += 1
+    return N
+
+
+@jit
 def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
-    """``P`` (n, n) and ``Lam`` (nf, n): accelerations ``P tau``, stuck torques ``Lam tau``."""
+    """``P`` (n, n) and the extended stuck-torque matrix ``Lam`` (nf, n + nf) of friction modes
+    ``fm``: accelerations ``P tau``; ``Lam[:, :n] tau`` the least-norm stuck torques;
+    ``Lam[:, n:]`` a basis ``N`` of the self-balancing stuck torques (zero columns beyond its
+    dimension ``d``; ``d = 0`` unless the stuck set is statically indeterminate).
+
+    With the constraint rows ``G`` of the stuck elements and ``S = G M^-1 G^T``:
+    ``Lam0 = S^+ G M^-1`` and ``P = M^-1 - M^-1 G^T Lam0`` (the paper's transformation T,
+    eq. (3)-(4), generalised). If ``S`` is singular (redundant constraints: a body held by two
+    stuck paths) the stuck torques are ``Lam0 tau + N z`` for any ``z``; which ``z`` the stuck
+    elements carry is chosen by :func:`stuck_torque` (the distribution with the largest smallest
+    capacity margin). Read the stuck torques through :func:`stuck_torque` /
+    :func:`stuck_torques`, never as ``Lam @ tau``.
+    """
     n = D.M.shape[0]
     nf = fm.shape[0]
     which = np.zeros(nf, dtype=np.int64)
@@ -384,19 +464,121 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
         if fm[f] == STUCK:
             which[f] = 1
     Minv = np.diag(1.0 / D.M)
-    Lam = np.zeros((nf, n))
+    Lam = np.zeros((nf, n + nf))
     G = constraint_rows(D, fm, which)
     if G.shape[0] == 0:
         return Minv, Lam
     GM = G @ Minv
     L = _solve_small(GM @ G.T, GM)
     P = Minv - GM.T @ L
+    N = _null_basis(G)
     r = 0
     for f in range(nf):
         if which[f]:
-            Lam[f, :] = L[r, :]
+            Lam[f, :n] = L[r, :]
+            for j in range(N.shape[1]):
+                Lam[f, n + j] = N[r, j]
             r += 1
     return P, Lam
+
+
+@jit_inline
+def _null_column(Lam, n, f):
+    """The null-space column (index into ``Lam[:, n:]``) in which stuck element ``f`` takes part:
+    -1 none (its stuck torque is unique), -2 more than one (coupled redundancy, dimension >= 2)."""
+    col = -1
+    for j in range(Lam.shape[1] - n):
+        if Lam[f, n + j] != 0.0:
+            if col != -1:
+                return -2
+            col = j
+    return col
+
+
+@jit_inline
+def _column_exact(Lam, n, fm, j):
+    """True if every stuck element of null-space column ``j`` takes part in that column only:
+    then the column is a one-dimensional redundancy of its own, solved exactly."""
+    for h in range(fm.shape[0]):
+        if fm[h] == STUCK and Lam[h, n + j] != 0.0 and _null_column(Lam, n, h) != j:
+            return False
+    return True
+
+
+@jit_inline
+def _lam0(Lam, tau, n, f):
+    """Least-norm stuck torque of element ``f``: ``Lam[f, :n] . tau``."""
+    lam = 0.0
+    for k in range(n):
+        lam += Lam[f, k] * tau[k]
+    return lam
+
+
+@jit_inline
+def _column_optimum(D, u, fm, reg, Lam, tau, j):
+    """``(z*, m*)``: the self-balancing torque ``z`` along null-space column ``j`` that maximises
+    the smallest static capacity margin ``m(z) = min_h (static_h cap_h - |lam0_h + N_hj z|)`` of
+    the column's stuck elements, and that largest margin.
+
+    An LP in one variable; exact, no iteration, no allocation. Each element gives an increasing
+    and a decreasing line of ``z``; by LP duality ``m*`` is the lowest of the intersection heights
+    of an increasing with a decreasing line, and ``z*`` that intersection (unique, since every
+    line has a nonzero slope). ``m*`` is continuous in the state and the inputs.
+    """
+    n = D.M.shape[0]
+    nf = fm.shape[0]
+    best = np.inf
+    zbest = 0.0
+    for f in range(nf):
+        bf = Lam[f, n + j] if fm[f] == STUCK else 0.0
+        if bf == 0.0:
+            continue
+        sf = 1.0 if bf > 0.0 else -1.0
+        cf = D.f_static[f] * _cap(D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, f, u, reg)
+        # increasing line of f: c_f + s_f a_f + |b_f| z
+        pf = cf + sf * _lam0(Lam, tau, n, f)
+        for h in range(nf):
+            bh = Lam[h, n + j] if fm[h] == STUCK else 0.0
+            if bh == 0.0:
+                continue
+            sh = 1.0 if bh > 0.0 else -1.0
+            ch = D.f_static[h] * _cap(D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, h, u, reg)
+            # decreasing line of h: c_h - s_h a_h - |b_h| z
+            ph = ch - sh * _lam0(Lam, tau, n, h)
+            z = (ph - pf) / (abs(bf) + abs(bh))
+            ht = pf + abs(bf) * z
+            if ht < best:
+                best = ht
+                zbest = z
+    return zbest, best
+
+
+@jit_inline
+def stuck_torque(D, u, fm, reg, Lam, tau, f):
+    """``(lam, margin)`` of stuck element ``f`` from the forces ``tau`` at ``u`` (regions
+    ``reg``) and the extended stuck-torque matrix ``Lam`` of :func:`mode_matrices`: the torque
+    [N m or N] it carries and its guard (>= 0 while the stuck set can hold).
+
+    The one definition of the stuck torques (used by the guards, the mode decision's consistency
+    test, :func:`stuck_torques`, :func:`powers`, :func:`coupling_torques` and, through
+    :func:`stuck_torques_rows`, :mod:`drivetrain_ctrl.sim.series`). A unique stuck torque: the
+    least-norm one, margin ``static cap - |lam|``. In a statically indeterminate stuck set with a
+    one-dimensional redundancy (the common case: a body held by its own ground friction and,
+    through a stuck clutch, by another body's), the most feasible distribution
+    (:func:`_column_optimum`) and, for every element of the redundancy, the group's optimal
+    margin ``m*``: continuous in the state (an LP's optimal value), so that the event locator
+    finds the crossing, and negative exactly when no distribution within the capacities exists.
+    A coupled redundancy of dimension >= 2 (three or more grounded bodies joined by stuck
+    couplings) keeps the least-norm torques and per-element margins: a known limitation.
+    """
+    n = D.M.shape[0]
+    lam = _lam0(Lam, tau, n, f)
+    j = _null_column(Lam, n, f)
+    if j >= 0 and _column_exact(Lam, n, fm, j):
+        z, mstar = _column_optimum(D, u, fm, reg, Lam, tau, j)
+        return lam + Lam[f, n + j] * z, mstar
+    cap = _cap(D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, f, u, reg)
+    return lam, D.f_static[f] * cap - abs(lam)
 
 
 @jit_nonrt
@@ -472,8 +654,34 @@ def rhs(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, P: F64, xdot: F64) -> N
 
 @jit
 def stuck_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> F64:
-    """Friction torque [N m or N] each stuck element must carry (0 for the others)."""
-    return Lam @ forces(D, x, u, fm, reg)
+    """Friction torque [N m or N] each stuck element must carry (0 for the others), ``Lam``
+    from :func:`mode_matrices` (:func:`stuck_torque`: in a statically indeterminate stuck set
+    the distribution with the largest smallest capacity margin)."""
+    tau = forces(D, x, u, fm, reg)
+    nf = fm.shape[0]
+    out = np.zeros(nf)
+    for f in range(nf):
+        if fm[f] == STUCK:
+            out[f] = stuck_torque(D, u, fm, reg, Lam, tau, f)[0]
+    return out
+
+
+@jit
+def stuck_torques_rows(D: ChainData, U: F64, fm: I64, REG: I64, Lam: F64, TAU: F64) -> F64:
+    """(N, nf) :func:`stuck_torque` of every stuck element at N samples in one friction mode
+    ``fm`` (``Lam`` its :func:`mode_matrices`), from the inputs ``U`` (N, nu), regions ``REG``
+    (N, nt) and forces ``TAU`` (N, n) of the samples; 0 for the elements not stuck."""
+    N = TAU.shape[0]
+    nf = fm.shape[0]
+    out = np.zeros((N, nf))
+    for i in range(N):
+        u = U[i]
+        reg = REG[i]
+        tau = TAU[i]
+        for f in range(nf):
+            if fm[f] == STUCK:
+                out[i, f] = stuck_torque(D, u, fm, reg, Lam, tau, f)[0]
+    return out
 
 
 @jit_inline
@@ -494,7 +702,8 @@ def guards(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64, g: F64) ->
     """Guard values (>= 0 while the mode holds) into ``g``.
 
     Layout: one per friction element (slip: ``min(s w, capacity)``: it stops slipping or opens;
-    stuck: static capacity - ``|lam|``; open: ``-capacity``), then two per table (distance to the lower and upper bound of the
+    stuck: static capacity - ``|lam|``, or the optimal margin of its statically indeterminate
+    stuck set, :func:`stuck_torque`; open: ``-capacity``), then two per table (distance to the lower and upper bound of the
     current region; ``+inf`` where there is none).
     """
     tau = np.empty(D.M.shape[0])
@@ -523,7 +732,6 @@ def guards_given_forces(
     """:func:`guards_into` with the forces at ``(x, u)`` already in ``tau`` (read only if an
     element is stuck)."""
     nf = D.f_kind.shape[0]
-    n = D.M.shape[0]
     for f in range(nf):
         m = fm[f]
         i = D.f_idx[f]
@@ -540,10 +748,7 @@ def guards_given_forces(
         if m == OPEN:
             g[f] = -cap
         elif m == STUCK:
-            lam = 0.0
-            for k in range(n):
-                lam += Lam[f, k] * tau[k]
-            g[f] = D.f_static[f] * cap - abs(lam)
+            g[f] = stuck_torque(D, u, fm, reg, Lam, tau, f)[1]
         elif D.f_eps[f] > 0.0:
             g[f] = np.inf
         else:
@@ -628,7 +833,7 @@ def powers(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) -> tuple[f
     for c in range(m):
         w = x[c] - D.ratio[c] * x[c + 1]
         pd[n + c] = damper_coefficient(D, c, reg) * w * w
-    lam = Lam @ forces(D, x, u, fm, reg)
+    lam = stuck_torques(D, x, u, fm, reg, Lam)
     for f in range(nf):
         w = rel_speed(D, f, x)
         if fm[f] == SLIP_POS or fm[f] == SLIP_NEG:
@@ -741,7 +946,7 @@ def coupling_torques(D: ChainData, x: F64, u: F64, fm: I64, reg: I64, Lam: F64) 
         if kt >= 0:
             T += table_value(D, kt, reg[kt], x[D.c_q[c]])
         out[c] = T
-    lam = Lam @ forces(D, x, u, fm, reg)
+    lam = stuck_torques(D, x, u, fm, reg, Lam)
     for f in range(D.f_kind.shape[0]):
         if D.f_kind[f] != 0:
             continue

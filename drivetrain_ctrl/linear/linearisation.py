@@ -112,8 +112,10 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
         gain = float(clutch_du[m.input_names.index("pedal")])
     elif code == K.STUCK:
         _, Lam = K.mode_matrices(D, np.array(mode.fm, dtype=np.int64))
-        clutch_dx = Lam[fc] @ dtau_dx
-        clutch_du = Lam[fc] @ dtau_du
+        # the least-norm part of the stuck-torque matrix (its last nf columns span the
+        # self-balancing torques of a statically indeterminate stuck set)
+        clutch_dx = Lam[fc, :n] @ dtau_dx
+        clutch_du = Lam[fc, :n] @ dtau_du
     else:
         clutch_dx = np.zeros(m.nx)
         clutch_du = np.zeros(len(m.input_names))

@@ -9,7 +9,11 @@ simulation itself). Here the same formulas as
 :func:`~drivetrain_ctrl.kernels.physics.forces_into`, :func:`~drivetrain_ctrl.kernels.physics.rhs`
 and :func:`~drivetrain_ctrl.kernels.physics.coupling_torques` are written on columns of all
 samples, and the mode matrices ``P``, ``Lam`` are computed once per distinct stick/slip
-combination. The values equal the single-point kernels' to round-off (the sums run in another
+combination. The stuck torques are not re-implemented: the compiled
+:func:`~drivetrain_ctrl.kernels.physics.stuck_torques_rows` (the kernel's
+:func:`~drivetrain_ctrl.kernels.physics.stuck_torque` on every row of a mode) gives them from the
+forces computed here, the most feasible distribution in a statically indeterminate stuck set
+included. The values equal the single-point kernels' to round-off (the sums run in another
 order); the tests compare them on the built-in scenarios.
 
 All arrays are in SI units: ``X`` (N, nx) states, ``U`` (N, nu) inputs, ``FM`` (N, nf) friction
@@ -171,9 +175,19 @@ def coupling_torques(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
         for g in range(modes.shape[0]):
             if not np.any(modes[g] == K.STUCK):
                 continue
-            _, Lam = K.mode_matrices(D, np.ascontiguousarray(modes[g]))
+            fm = np.ascontiguousarray(modes[g], dtype=np.int64)
+            _, Lam = K.mode_matrices(D, fm)
             sel = inv == g
-            lam[sel] = tau[sel] @ Lam.T
+            # the kernel's one definition of the stuck torques (not a numpy re-implementation):
+            # in a statically indeterminate stuck set the distribution is an LP's solution
+            lam[sel] = K.stuck_torques_rows(
+                D,
+                np.ascontiguousarray(U[sel], dtype=float),
+                fm,
+                np.ascontiguousarray(REG[sel], dtype=np.int64),
+                Lam,
+                np.ascontiguousarray(tau[sel], dtype=float),
+            )
     F = _slip_torques(D, X, U, FM, REG)
     for f in coupled:
         c = int(D.f_idx[f])
