@@ -54,3 +54,13 @@ def test_a_pi_crossover_at_the_nyquist_frequency_is_rejected() -> None:
     with pytest.raises(ValueError, match="must be below the Nyquist frequency"):
         design_pi(plant, wc=math.pi / dt)
     design_pi(plant, wc=0.5 * math.pi / dt)  # below it: a design (feasible or not)
+
+
+def test_a_parameter_box_must_be_a_mapping() -> None:
+    from drivetrain_ctrl.design.clutch import _dims
+    from drivetrain_ctrl.plant.params import default_params
+
+    with pytest.raises(
+        TypeError, match=r"^box = \[\('engine.J1', \(0.1, 0.2\)\)\]: must be a mapping"
+    ):
+        _dims([("engine.J1", (0.1, 0.2))], default_params())  # type: ignore[arg-type]
