@@ -64,3 +64,12 @@ def test_a_parameter_box_must_be_a_mapping() -> None:
         TypeError, match=r"^box = \[\('engine.J1', \(0.1, 0.2\)\)\]: must be a mapping"
     ):
         _dims([("engine.J1", (0.1, 0.2))], default_params())  # type: ignore[arg-type]
+
+
+def test_the_negative_plant_hint_sees_through_a_discrete_integrator() -> None:
+    # -0.01 / (z - 1): the gain with the integrator at z = 1 divided out is -0.01 < 0
+    d = design_pi(control.tf([-0.01], [1.0, -1.0], 0.01), wc=1.0, phase_margin=60.0)
+    assert not d.feasible and "low-frequency gain is negative" in d.message
+    # +0.01 / (z - 1): positive, no hint
+    pos = design_pi(control.tf([0.01], [1.0, -1.0], 0.01), wc=1.0, phase_margin=60.0)
+    assert "negative" not in pos.message
