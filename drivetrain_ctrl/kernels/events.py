@@ -399,6 +399,19 @@ def _guard_slope(D, S, ua, ub, t, t_ref, hh, th, j, rc, ys, fm, reg, Lam, nx, u,
 
 
 @jit_inline
+def _slip_sign(fm, j):
+    """``s`` of guard ``j`` if it is the slip guard ``min(s w, capacity)`` of a slipping friction
+    element (``s`` = +1 slip+, -1 slip-), else 0."""
+    if j >= fm.shape[0]:
+        return 0.0
+    if fm[j] == SLIP_POS:
+        return 1.0
+    if fm[j] == SLIP_NEG:
+        return -1.0
+    return 0.0
+
+
+@jit_inline
 def _slip_overshoot(D, fm, j, y, g, tol_w):
     """True if guard ``j`` is the slip-speed guard of a slipping friction element whose relative
     speed at ``y`` is past zero by more than ``tol_w / 2``: the decision, which takes elements
@@ -451,7 +464,7 @@ def _short_step(
 @jit_nonrt
 def _event_state(
     D, S, ua, ub, t, t_ref, y, y1, hh, hi, j, fm, reg, PT, Lam, nx, energy, rtol, atol, tol_w,
-    g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, yf, err, Cd, cs, sv, svw, rc, ys, yhi,
+    g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, err, Cd, cs, sv, svw, rc, ys, yhi,
 ):  # fmt: skip
     """The state at the event of a step from ``(t, y)`` of length ``hh`` (end ``y1``, guards
     ``g1``) into ``yhi``, from real integration steps instead of the continuous extension.
@@ -467,13 +480,15 @@ def _event_state(
     if its error is too large), until a guard has fired at the integrated state (``_fired``)
     and, if it is the slip-speed guard of a slipping element, the relative speed is within
     ``tol_w / 2`` of zero (:func:`_slip_overshoot`), so that the decision sees the element at
-    zero as before. A bracket (last fraction not fired, last fired) keeps the tries in the step.
+    zero as before. For a slip guard near zero speed the Newton steps aim at the slip speed itself
+    (a capacity near zero would hide it in ``min(s w, capacity)``). A Newton step that leaves the
+    bracket (last fraction not fired, last fired) ends the tries.
 
     Returns ``(th, j, nfev)``: the event's fraction of the step, the guard that fired there and
     the right-hand-side evaluations spent. If no fraction qualifies within ``MAX_EVENT_STEPS``
-    tries the last fired one is taken, else the step's end (where a guard has fired). If a
-    re-integration misses the tolerance even in ``2^MAX_EVENT_SPLITS`` pieces (a step that met it
-    as a whole: not seen), the extension's state is kept (``yhi``, ``hi``, ``j`` unchanged)."""
+    tries, or a re-integration misses the tolerance even in ``2^MAX_EVENT_SPLITS`` pieces (a step
+    that met it as a whole), the extension's state is kept (``yhi``, ``hi``, ``j`` unchanged): it
+    is at the located crossing, which a state further on would not be."""
     n = y.shape[0]
     nfev, ok = _reintegrate(
         D, S, ua, ub, t, t_ref, y, hi * hh, fm, reg, PT, nx, energy, rtol, atol, uw, tau, Ks, K2,
@@ -484,7 +499,6 @@ def _event_state(
     tol_th = 1e-13 * max(1.0, abs(t)) / hh  # the bracket of _locate
     th_lo = 0.0
     th_hi = 1.0
-    j_hi = -1  # a guard fired at the integrated state at th_hi (yf); -1: th_hi is the step end
     th = hi
     jg = j  # the guard the Newton steps aim at
     for it in range(MAX_EVENT_STEPS):
@@ -498,18 +512,26 @@ def _event_state(
                     yhi[i] = yr[i]
                 return th, jj, nfev
             th_hi = th
-            j_hi = jj
             jg = jj
-            for i in range(n):
-                yf[i] = yr[i]
         else:
             th_lo = th
         if it == MAX_EVENT_STEPS - 1:
             break
         gv = gtry[jg]
-        slope = _guard_slope(
-            D, S, ua, ub, t, t_ref, hh, th, jg, rc, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
-        )
+        sg = _slip_sign(fm, jg)
+        if sg != 0.0 and abs(rel_speed(D, jg, yr)) <= tol_w:
+            # a slip speed at zero: Newton on it, not on the guard min(s w, capacity), which a
+            # capacity near zero hides it behind
+            gv = sg * rel_speed(D, jg, yr)
+            dense_eval(rc, th + SLOPE_DTH, ys)
+            slope = sg * rel_speed(D, jg, ys)
+            dense_eval(rc, th - SLOPE_DTH, ys)
+            slope = (slope - sg * rel_speed(D, jg, ys)) / (2.0 * SLOPE_DTH)
+        else:
+            slope = _guard_slope(
+                D, S, ua, ub, t, t_ref, hh, th, jg, rc, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv,
+                taug,
+            )  # fmt: skip
         # Newton towards g = -|gv| / 10, just past zero on the integrated trajectory; at least
         # the location's bracket, doubled on every further try (a miss at round-off level)
         dmin = tol_th * (1 << it)
@@ -522,7 +544,7 @@ def _event_state(
                 dth = dth if dth < -dmin else -dmin
             th_new = th + dth
         if not (th_lo < th_new < th_hi):
-            th_new = 0.5 * (th_lo + th_hi)
+            break  # no usable Newton step: the extension's state
         nf_, ok = _short_step(
             D, S, ua, ub, t + th * hh, t_ref, yr, (th_new - th) * hh, fm, reg, PT, nx, energy,
             rtol, atol, uw, tau, K2, dy, ya, Cd, cs, svw,
@@ -537,13 +559,7 @@ def _event_state(
             if not ok:
                 break
         th = th_new
-    if j_hi >= 0:
-        for i in range(n):
-            yhi[i] = yf[i]
-        return th_hi, j_hi, nfev
-    for i in range(n):
-        yhi[i] = y1[i]
-    return 1.0, _fired(g0, g1), nfev
+    return hi, j, nfev  # no integrated state qualified: the extension's (yhi), as located
 
 
 @jit_inline

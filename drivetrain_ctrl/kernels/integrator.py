@@ -468,7 +468,6 @@ def simulate_kernel(
     K2 = np.empty((7, ny))  # re-integration of an event's state (_event_state): its stages,
     ya = np.empty(ny)  # start and end of a piece
     yr = np.empty(ny)
-    yf = np.empty(ny)  # the last fired state
     rc = np.empty((5, ny))
     y = np.zeros(ny)
     y[:nx] = x0
@@ -677,8 +676,8 @@ def simulate_kernel(
             # the state there from a real (error-controlled) integration step, not the extension
             hi, j, nfe = _event_state(
                 D, S, ua, ub, t, t_ref, y, y1, hh, hi, j, fm, reg, mPT[slot], mL[slot], nx, energy,
-                rtol, atol, tol_w, g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, yf, err,
-                Cd, cs, sv, svw, rc, ys, yhi,
+                rtol, atol, tol_w, g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, err, Cd,
+                cs, sv, svw, rc, ys, yhi,
             )  # fmt: skip
             nfev += nfe
             if grid and io < t_out.shape[0] and t_out[io] <= t + hi * hh:

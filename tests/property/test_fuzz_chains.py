@@ -359,6 +359,50 @@ def test_event_states_are_integrated():
     assert np.median(x_err) < 1e-11
 
 
+def test_event_state_slip_with_capacity_near_zero():
+    """Found by the long profile at h_max = 1 ms: clutch f0's capacity is a table of a zero input
+    whose value there is 2.6e-203 N m, so its slip guard ``min(s w, capacity)`` is that tiny
+    capacity until the slip speed crosses zero. The event state's Newton steps aim at the slip
+    speed itself; an earlier version aimed at the guard, gave up and took the step's end, and
+    the energy residual was 6.2e-5 of the run's energy (6.0e-9 from the continuous extension)."""
+    tiny = PwlTable(x=(0.0, 1.0), y=(2.6490001265382116e-203, 1.0))
+    bodies = (
+        Body("b0", 5.0),
+        Body(
+            "b1", 1.2560917668129743, viscous=0.5, quadratic=0.024835593878689284, torque_input="T1"
+        ),
+        Body("b2", 2.25, torque_input="T2"),
+        Body("b3", 432.40715194607924, kind="translational", torque_input="T3"),
+    )
+    couplings = (
+        Coupling(
+            "c0",
+            ratio=2.6994122388029647,
+            spring=Spring((0.0, 1.0), (0.0, 1621.0), backlash=0.03125, name="k0"),
+            damper=1.0,
+            friction=Friction(scale=1.0, capacity_input="fn_f0", capacity_table=tiny, name="f0"),
+            damper_in_gap=False,
+        ),
+        Coupling("c1", friction=Friction(scale=1.5, name="f1")),
+        Coupling(
+            "c2",
+            ratio=4.0,
+            spring=Spring(
+                (0.0, 0.125, 1.125), (0.0, 223.875, 13656.375), backlash=0.046875, name="k2"
+            ),
+            damper=0.25,
+            damper_in_gap=False,
+        ),
+    )
+    m = Model(Chain(bodies, couplings, inputs=("T1", "T2", "T3", "fn_f0")))
+    x0 = np.array([0.65625, 6.0, 0.0, 3.9375, 0.0, 0.0, 0.0])
+    r = simulate(m, x0, dict.fromkeys(("T1", "T2", "T3", "fn_f0"), 0.0), t_end=1.0)
+    E = r.stored_energy()
+    resid = abs(E[-1] - E[0] - r.work_in[-1] + r.dissipated[-1].sum())
+    assert len(r.events) == 145
+    assert resid <= 1e-7 * max(abs(r.work_in[-1]), np.abs(E).max())
+
+
 @pytest.mark.xfail(
     strict=True,
     reason="known limitation: a statically indeterminate stuck set (a body held by two paths) "
