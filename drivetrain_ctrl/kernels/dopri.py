@@ -3,7 +3,8 @@
 The augmented state is ``y = [x, controller states, W_in, E_diss...]`` (:func:`full_rhs`);
 :func:`dp5_step` takes one embedded Runge-Kutta step with its error estimate and
 :func:`dense_coeffs` / :func:`dense_eval` give the state within the step (Hairer's DOPRI5
-continuous extension), which event location and the slip-dip check sample.
+continuous extension), which event location, the slip-dip check and the output grid sample
+(the state at an event is then re-integrated with :func:`dp5_step`, see ``events._event_state``).
 """
 
 from __future__ import annotations

@@ -2,7 +2,11 @@
 
 * after each accepted step every guard is checked (:func:`_fired`); a guard that turned negative
   is an event, located on the step's continuous extension (Illinois regula falsi, :func:`_locate`)
-  to a bracket of ``1e-13 * max(1, |t|)`` s; the state just past the event is taken;
+  to a bracket of ``1e-13 * max(1, |t|)`` s. The state there is not the extension's (4th order,
+  its error not under the tolerance) but a real integration step's (:func:`_event_state`): one
+  DP5 step from the step start to the located time, error-controlled, the energy states with it;
+  then the time is corrected (Newton on the guard, short Heun steps) until the guard has just
+  crossed zero on the integrated trajectory;
 * a slip speed that dips through zero and back within one step (:func:`_slip_dip`) is caught by
   retaking the step up to the dip;
 * at an event all elements at zero relative speed are decided together with the controller's
@@ -17,7 +21,15 @@ from __future__ import annotations
 import numpy as np
 
 from ._jit import jit, jit_inline, jit_nonrt
-from .controller import CI_OUT, N_CL_EVENT_BLOCKS, cl_guards, cl_guards_cold, cl_update, eval_u_cold
+from .controller import (
+    CI_OUT,
+    N_CL_EVENT_BLOCKS,
+    cl_guards,
+    cl_guards_cold,
+    cl_update,
+    eval_u_cold,
+    n_cl_states,
+)
 from .decide import (
     DM_MAX_CANDIDATES,
     DM_TOO_MANY,
@@ -27,7 +39,7 @@ from .decide import (
     _mm_insert,
     _project_cached,
 )
-from .dopri import _dense_row, _dense_value, dense_coeffs, dense_eval
+from .dopri import _dense_row, _dense_value, dense_coeffs, dense_eval, dp5_step, full_rhs_call
 from .physics import SLIP_NEG, SLIP_POS, guards_given_forces, guards_into, n_guards, rel_speed
 from .stability import _stab_lookup
 
@@ -269,7 +281,8 @@ def _locate(
     Illinois on the guard in theta on the continuous extension (no allocation, no NRT).
 
     Returns ``(hi, j)``: the fraction of the step at which the first guard has fired (``yhi`` the
-    state there) and that guard (the earliest one found)."""
+    state there on the extension; :func:`_event_state` then integrates it) and that guard (the
+    earliest one found)."""
     dense_coeffs(y, y1, Ks, hh, rc)
     lo = 0.0
     hi = 1.0
@@ -311,6 +324,242 @@ def _locate(
                 ghi *= 0.5
             side = 1
     return hi, j
+
+
+#: most DP5 re-integrations for the state at one event (:func:`_event_state`)
+MAX_EVENT_STEPS = 8
+#: most halvings of a re-integration whose error estimate exceeds the tolerance
+MAX_EVENT_SPLITS = 6
+#: fraction of the step of the central difference that gives a guard's slope on the extension
+SLOPE_DTH = 1e-5
+
+
+@jit_nonrt
+def _reintegrate(
+    D, S, ua, ub, t, t_ref, y, h, fm, reg, PT, nx, energy, rtol, atol, uw, tau, Ks, K2, dy, yt,
+    ya, yr, err, Cd, cs, svw,
+):  # fmt: skip
+    """The state at ``t + h`` from ``(t, y)`` into ``yr`` by DP5 steps (:func:`dp5_step`, the
+    energy states too; ``Ks[0] = f(t, y)``): one step of length ``h``, or ``2^k`` equal steps if a
+    step's error estimate exceeds the tolerance (the norm of the step control of ``_advance``).
+    Returns ``(nfev, ok)``; ``ok`` is False if ``2^MAX_EVENT_SPLITS`` steps still miss it.
+    A compiled call, not inlined: one copy of the inlined :func:`dp5_step` for both call sites."""
+    n = y.shape[0]
+    nxs = nx + n_cl_states(Cd)
+    nfev = 0
+    n_sub = 1
+    ok = False
+    for _split in range(MAX_EVENT_SPLITS + 1):
+        for i in range(n):
+            ya[i] = y[i]
+            K2[0, i] = Ks[0, i]
+        hs = h / n_sub
+        ok = True
+        for k in range(n_sub):
+            dp5_step(
+                D, S, ua, ub, t + k * hs, t_ref, ya, hs, fm, reg, PT, nx, energy, uw, tau, K2,
+                dy, yt, yr, err, Cd, cs, svw,
+            )  # fmt: skip
+            nfev += 6
+            en = 0.0
+            for i in range(nxs):
+                a = abs(ya[i])
+                b = abs(yr[i])
+                r = err[i] / (atol + rtol * (a if a > b else b))
+                en += r * r
+            if not (np.sqrt(en / nxs) <= 1.0):
+                ok = False
+                break
+            for i in range(n):
+                ya[i] = yr[i]
+                K2[0, i] = K2[6, i]  # first same as last: same mode, same input pieces
+        if ok:
+            break
+        n_sub *= 2
+    return nfev, ok
+
+
+@jit_inline
+def _guard_slope(D, S, ua, ub, t, t_ref, hh, th, j, rc, ys, fm, reg, Lam, nx, u, gtry, Cd, cs,
+                 sv, taug):  # fmt: skip
+    """d(guard ``j``)/d(theta) at fraction ``th`` of the step, by a central difference on the
+    step's continuous extension ``rc`` (``SLOPE_DTH``); overwrites ``gtry``."""
+    dense_eval(rc, th + SLOPE_DTH, ys)
+    _guards_step_inl(
+        D, S, ua, ub, t + (th + SLOPE_DTH) * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv,
+        taug,
+    )  # fmt: skip
+    gp = gtry[j]
+    dense_eval(rc, th - SLOPE_DTH, ys)
+    _guards_step_inl(
+        D, S, ua, ub, t + (th - SLOPE_DTH) * hh, t_ref, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv,
+        taug,
+    )  # fmt: skip
+    return (gp - gtry[j]) / (2.0 * SLOPE_DTH)
+
+
+@jit_inline
+def _slip_sign(fm, j):
+    """``s`` of guard ``j`` if it is the slip guard ``min(s w, capacity)`` of a slipping friction
+    element (``s`` = +1 slip+, -1 slip-), else 0."""
+    if j >= fm.shape[0]:
+        return 0.0
+    if fm[j] == SLIP_POS:
+        return 1.0
+    if fm[j] == SLIP_NEG:
+        return -1.0
+    return 0.0
+
+
+@jit_inline
+def _slip_overshoot(D, fm, j, y, g, tol_w):
+    """True if guard ``j`` is the slip-speed guard of a slipping friction element whose relative
+    speed at ``y`` is past zero by more than ``tol_w / 2``: the decision, which takes elements
+    with ``|w| <= tol_w`` as candidates for sticking, would not see it at zero."""
+    if j >= fm.shape[0] or (fm[j] != SLIP_POS and fm[j] != SLIP_NEG):
+        return False
+    w = rel_speed(D, j, y)
+    sw = w if fm[j] == SLIP_POS else -w
+    return sw == g[j] and sw < -0.5 * tol_w
+
+
+@jit_inline
+def _short_step(
+    D, S, ua, ub, t0, t_ref, yr, dt, fm, reg, PT, nx, energy, rtol, atol, uw, tau, K2, dy, ya,
+    Cd, cs, svw,
+):  # fmt: skip
+    """Move ``yr`` (the state at ``t0``, ``K2[6] = f(t0, yr)``) by ``dt`` (either sign) with
+    Heun's method, if the error estimate (its difference from Euler's step, in the norm of the
+    step control) is within the tolerance; then ``K2[6] = f(t0 + dt, yr)`` again. For the tiny
+    corrections of an event's fraction (about 1e-10 of a step) this costs 2 evaluations instead
+    of a DP5 step's 6. Returns ``(nfev, ok)``; ``yr`` is unchanged if not ``ok``."""
+    n = yr.shape[0]
+    nxs = nx + n_cl_states(Cd)
+    for i in range(nxs):
+        ya[i] = yr[i] + dt * K2[6, i]
+    full_rhs_call(
+        D, S, ua, ub, t0 + dt, t_ref, ya, fm, reg, PT, nx, energy, uw, tau, dy, Cd, cs, svw
+    )
+    en = 0.0
+    for i in range(n):
+        v = yr[i] + 0.5 * dt * (K2[6, i] + dy[i])
+        if i < nxs:
+            a = abs(yr[i])
+            b = abs(v)
+            r = 0.5 * dt * (dy[i] - K2[6, i]) / (atol + rtol * (a if a > b else b))
+            en += r * r
+        ya[i] = v
+    if not (np.sqrt(en / nxs) <= 1.0):
+        return 1, False
+    for i in range(n):
+        yr[i] = ya[i]
+    full_rhs_call(
+        D, S, ua, ub, t0 + dt, t_ref, yr, fm, reg, PT, nx, energy, uw, tau, dy, Cd, cs, svw
+    )
+    for i in range(n):
+        K2[6, i] = dy[i]
+    return 2, True
+
+
+@jit_nonrt
+def _event_state(
+    D, S, ua, ub, t, t_ref, y, y1, hh, hi, j, fm, reg, PT, Lam, nx, energy, rtol, atol, tol_w,
+    g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, err, Cd, cs, sv, svw, rc, ys, yhi,
+):  # fmt: skip
+    """The state at the event of a step from ``(t, y)`` of length ``hh`` (end ``y1``, guards
+    ``g1``) into ``yhi``, from real integration steps instead of the continuous extension.
+
+    :func:`_locate` found the event at fraction ``hi`` on the extension (``yhi`` its state there,
+    ``rc`` the extension). The extension is 4th order and has no error estimate: its error, not
+    the tolerance, set the energy residual's floor (issue 19). Here the state at ``hi`` is
+    re-integrated from the step start (:func:`_reintegrate`: DP5, error-controlled, energy states
+    included). The guards there differ from the extension's by the extension's error, so the
+    fraction is then corrected by Newton steps on the fired guard (slope on the extension,
+    :func:`_guard_slope`; aiming a tenth of the miss past zero, at least the location's bracket)
+    with short Heun steps from the re-integrated state (:func:`_short_step`; a full re-integration
+    if its error is too large), until a guard has fired at the integrated state (``_fired``)
+    and, if it is the slip-speed guard of a slipping element, the relative speed is within
+    ``tol_w / 2`` of zero (:func:`_slip_overshoot`), so that the decision sees the element at
+    zero as before. For a slip guard near zero speed the Newton steps aim at the slip speed itself
+    (a capacity near zero would hide it in ``min(s w, capacity)``). A Newton step that leaves the
+    bracket (last fraction not fired, last fired) ends the tries.
+
+    Returns ``(th, j, nfev)``: the event's fraction of the step, the guard that fired there and
+    the right-hand-side evaluations spent. If no fraction qualifies within ``MAX_EVENT_STEPS``
+    tries, or a re-integration misses the tolerance even in ``2^MAX_EVENT_SPLITS`` pieces (a step
+    that met it as a whole), the extension's state is kept (``yhi``, ``hi``, ``j`` unchanged): it
+    is at the located crossing, which a state further on would not be."""
+    n = y.shape[0]
+    nfev, ok = _reintegrate(
+        D, S, ua, ub, t, t_ref, y, hi * hh, fm, reg, PT, nx, energy, rtol, atol, uw, tau, Ks, K2,
+        dy, yt, ya, yr, err, Cd, cs, svw,
+    )  # fmt: skip
+    if not ok:
+        return hi, j, nfev
+    tol_th = 1e-13 * max(1.0, abs(t)) / hh  # the bracket of _locate
+    th_lo = 0.0
+    th_hi = 1.0
+    th = hi
+    jg = j  # the guard the Newton steps aim at
+    for it in range(MAX_EVENT_STEPS):
+        _guards_step_inl(
+            D, S, ua, ub, t + th * hh, t_ref, yr, fm, reg, Lam, nx, u, gtry, Cd, cs, sv, taug
+        )
+        jj = _fired(g0, gtry)
+        if jj >= 0:
+            if not _slip_overshoot(D, fm, jj, yr, gtry, tol_w):
+                for i in range(n):
+                    yhi[i] = yr[i]
+                return th, jj, nfev
+            th_hi = th
+            jg = jj
+        else:
+            th_lo = th
+        if it == MAX_EVENT_STEPS - 1:
+            break
+        gv = gtry[jg]
+        sg = _slip_sign(fm, jg)
+        if sg != 0.0 and abs(rel_speed(D, jg, yr)) <= tol_w:
+            # a slip speed at zero: Newton on it, not on the guard min(s w, capacity), which a
+            # capacity near zero hides it behind
+            gv = sg * rel_speed(D, jg, yr)
+            dense_eval(rc, th + SLOPE_DTH, ys)
+            slope = sg * rel_speed(D, jg, ys)
+            dense_eval(rc, th - SLOPE_DTH, ys)
+            slope = (slope - sg * rel_speed(D, jg, ys)) / (2.0 * SLOPE_DTH)
+        else:
+            slope = _guard_slope(
+                D, S, ua, ub, t, t_ref, hh, th, jg, rc, ys, fm, reg, Lam, nx, u, gtry, Cd, cs, sv,
+                taug,
+            )  # fmt: skip
+        # Newton towards g = -|gv| / 10, just past zero on the integrated trajectory; at least
+        # the location's bracket, doubled on every further try (a miss at round-off level)
+        dmin = tol_th * (1 << it)
+        th_new = np.nan
+        if slope < 0.0:
+            dth = (-0.1 * abs(gv) - gv) / slope
+            if th_lo == th:  # not fired yet: forward
+                dth = dth if dth > dmin else dmin
+            else:  # fired, past zero by too much: back
+                dth = dth if dth < -dmin else -dmin
+            th_new = th + dth
+        if not (th_lo < th_new < th_hi):
+            break  # no usable Newton step: the extension's state
+        nf_, ok = _short_step(
+            D, S, ua, ub, t + th * hh, t_ref, yr, (th_new - th) * hh, fm, reg, PT, nx, energy,
+            rtol, atol, uw, tau, K2, dy, ya, Cd, cs, svw,
+        )  # fmt: skip
+        nfev += nf_
+        if not ok:
+            nf_, ok = _reintegrate(
+                D, S, ua, ub, t, t_ref, y, th_new * hh, fm, reg, PT, nx, energy, rtol, atol, uw,
+                tau, Ks, K2, dy, yt, ya, yr, err, Cd, cs, svw,
+            )  # fmt: skip
+            nfev += nf_
+            if not ok:
+                break
+        th = th_new
+    return hi, j, nfev  # no integrated state qualified: the extension's (yhi), as located
 
 
 @jit_inline

@@ -6,8 +6,10 @@ Dormand-Prince 5(4) Runge-Kutta method (:mod:`.dopri`):
 * within a mode the right-hand side is smooth: the mode's stuck constraints, the affine piece of
   every piecewise-linear law and the current piece of every input signal are held fixed;
 * after each accepted step every guard is checked; a guard that turned negative is an event,
-  located by re-integrating from the step start with a shorter step (Illinois regula falsi) to
-  a bracket of ``1e-13 * max(1, |t|)`` s; the state just past the event is taken (:mod:`.events`);
+  located on the step's continuous extension (Illinois regula falsi) to a bracket of
+  ``1e-13 * max(1, |t|)`` s; the state at the event is then re-integrated from the step start
+  with one Dormand-Prince step of that length (error-controlled, the energy states with it) and
+  the time corrected until the guard has just crossed zero on that trajectory (:mod:`.events`);
 * at an event all elements at zero relative speed are decided together
   (:func:`~drivetrain_ctrl.kernels.decide_modes`), then the guards are re-checked until none
   fires; a run of too many events in a short time (Zeno) stops the run with a status naming the
@@ -47,6 +49,7 @@ from .dopri import dense_coeffs, dense_eval, dp5_step, full_rhs_call
 from .events import (
     MAX_DIP_RETAKES,
     _decide_fast,
+    _event_state,
     _fired,
     _guards_last_stage,
     _guards_step_inl,
@@ -462,6 +465,9 @@ def simulate_kernel(
     err = np.empty(ny)
     ys = np.empty(ny)
     yhi = np.empty(ny)
+    K2 = np.empty((7, ny))  # re-integration of an event's state (_event_state): its stages,
+    ya = np.empty(ny)  # start and end of a piece
+    yr = np.empty(ny)
     rc = np.empty((5, ny))
     y = np.zeros(ny)
     y[:nx] = x0
@@ -667,6 +673,13 @@ def simulate_kernel(
                 ys,
                 yhi,
             )
+            # the state there from a real (error-controlled) integration step, not the extension
+            hi, j, nfe = _event_state(
+                D, S, ua, ub, t, t_ref, y, y1, hh, hi, j, fm, reg, mPT[slot], mL[slot], nx, energy,
+                rtol, atol, tol_w, g0, g1, gtry, u, uw, tau, taug, Ks, K2, dy, yt, ya, yr, err, Cd,
+                cs, sv, svw, rc, ys, yhi,
+            )  # fmt: skip
+            nfev += nfe
             if grid and io < t_out.shape[0] and t_out[io] <= t + hi * hh:
                 # the grid up to the event on the step's continuous extension (rc from _locate)
                 n_rec, io = _record_grid(
