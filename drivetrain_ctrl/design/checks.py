@@ -13,7 +13,7 @@ a dense frequency grid with the exact delay, independently of how the controller
   not reported; None, with the reason in ``reasons``, when there is no such crossover;
 * ``disk_margin``: the symmetric (skew 0) disk margin ``alpha = 1/max|S - 1/2|``, and its gain
   and phase figures ``disk_margin_db``, ``disk_margin_deg`` (python-control's ``disk_margins``
-  formulas, :func:`disk_figures`);
+  formulas, :func:`~drivetrain_ctrl.linear.margins.disk_figures`);
 * ``stable``: from the closed-loop poles of the rational loop (a continuous delay by its Pade
   approximation of ``pade_order``, a discrete one ``z^-k``); None if that model cannot be formed
   (a discrete delay of a fraction of a sample), with the reason;
@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.serialize import json_ready
+from ..linear.margins import disk_figures
 from .plants import Plant, PlantSet, as_plant_set, frequency_grid
 
 __all__ = [
@@ -104,19 +105,6 @@ class LoopCheck:
         d["active"] = [{"bound": b, "frequency_rad_s": w, "slack": s} for b, w, s in self.active]
         d["reasons"] = dict(self.reasons)
         return json_ready(d)
-
-
-def disk_figures(alpha: float) -> tuple[float, float]:
-    """Disk-based gain [dB] and phase [deg] margins of a symmetric (skew 0) disk margin alpha,
-    by python-control's ``disk_margins`` formulas."""
-    gmin = (1 - 0.5 * alpha) / (1 + 0.5 * alpha)
-    with np.errstate(divide="ignore"):
-        gmax = (1 + 0.5 * alpha) / (1 - 0.5 * alpha) if alpha < 2 else math.inf
-    dgm = 20 * math.log10(min(1 / gmin, gmax)) if gmin > 0 else math.inf
-    if math.isinf(gmax):
-        return dgm, 90.0
-    c = (1 + gmin * gmax) / (gmin + gmax)
-    return dgm, (math.inf if abs(c) >= 1 else math.degrees(math.acos(c)))
 
 
 def check_grid(w: Any, dt: float = 0.0, n: int = CHECK_POINTS) -> F64:

@@ -45,6 +45,7 @@ __all__ = [
     "Pole",
     "LoopMargins",
     "loop_margins",
+    "disk_figures",
     "clutch_loop_margins",
     "RootLocusPoint",
     "RootLocus",
@@ -207,21 +208,26 @@ class LoopMargins:
         return plot_loop(w, bode, title=title, poles=poles, path=path)
 
 
-def _disk_margin(S: NDArray[np.complex128]) -> tuple[float, float, float]:
-    """Symmetric (skew 0) disk margin of a SISO loop from its sensitivity ``S`` on a frequency
-    grid: ``alpha = 1/max_w |S(jw) - 1/2|``, the disk's gain margin [dB] ``20 log10 g`` with
-    ``g = (1 + alpha/2)/(1 - alpha/2)`` (inf for ``alpha >= 2``) and its phase margin [deg]
-    ``arccos((1 - t^2)/(1 + t^2)) = 2 atan(t)``, ``t = alpha/2`` (above 90 for ``alpha > 2``), as
-    python-control's ``disk_margins`` gives them. One vectorised frequency response instead of
-    ``disk_margins``' per-frequency loop; equal to it within rounding
-    (tests/unit/test_linear_fast_paths.py)."""
-    peak = float(np.max(np.abs(np.asarray(S, dtype=complex) - 0.5)))
-    alpha = 1.0 / peak if peak > 0 else math.inf
+def disk_figures(alpha: float) -> tuple[float, float]:
+    """Disk-based gain [dB] and phase [deg] margins of a symmetric (skew 0) disk margin
+    ``alpha``, as python-control's ``disk_margins`` gives them: with ``t = alpha/2`` the gain
+    margin ``20 log10((1 + t)/(1 - t))`` (inf for ``alpha >= 2``) and the phase margin
+    ``arccos((1 - t^2)/(1 + t^2)) = 2 atan(t)`` (90 at ``alpha = 2``, above 90 beyond)."""
     t = 0.5 * alpha
     gain_db = 20.0 * math.log10((1.0 + t) / (1.0 - t)) if alpha < 2.0 else math.inf
     c = (1.0 - t * t) / (1.0 + t * t) if math.isfinite(t) else -1.0
     phase = math.degrees(math.acos(c)) if abs(c) < 1.0 else math.inf
-    return alpha, gain_db, phase
+    return gain_db, phase
+
+
+def _disk_margin(S: NDArray[np.complex128]) -> tuple[float, float, float]:
+    """Symmetric (skew 0) disk margin of a SISO loop from its sensitivity ``S`` on a frequency
+    grid: ``alpha = 1/max_w |S(jw) - 1/2|`` and its :func:`disk_figures`. One vectorised
+    frequency response instead of ``disk_margins``' per-frequency loop; equal to it within
+    rounding (tests/unit/test_linear_fast_paths.py)."""
+    peak = float(np.max(np.abs(np.asarray(S, dtype=complex) - 0.5)))
+    alpha = 1.0 / peak if peak > 0 else math.inf
+    return (alpha, *disk_figures(alpha))
 
 
 def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins:

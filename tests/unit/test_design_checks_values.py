@@ -41,13 +41,28 @@ def _L(k: float, w: np.ndarray) -> np.ndarray:
         # alpha = 0.5: gmin = 0.6, gmax = 5/3; c = 2 / (0.6 + 5/3)
         (0.5, 20 * math.log10(5.0 / 3.0), math.degrees(math.acos(2.0 / (0.6 + 5.0 / 3.0)))),
         (2.0, math.inf, 90.0),
-        (3.0, math.inf, 90.0),
+        # alpha = 3: gmin = -0.2, gmax = -5 (both negative: no gain margin, as python-control's
+        # nan -> inf); c = (1 + 1) / (-5.2) -> 112.6 deg, not 90 (python-control's per-frequency
+        # formula; 90 only where gmax is exactly infinite, alpha = 2)
+        (3.0, math.inf, math.degrees(math.acos(2.0 / -5.2))),
     ],
 )
 def test_disk_figures_closed_form(alpha: float, db: float, deg: float) -> None:
     got_db, got_deg = disk_figures(alpha)
     assert got_db == pytest.approx(db, rel=1e-12)
     assert got_deg == pytest.approx(deg, rel=1e-12)
+
+
+def test_disk_figures_equal_python_control_beyond_alpha_2() -> None:
+    """L = 0.2/(s + 1): |S - 1/2| <= 1/3, alpha = 3 at w = 0; python-control's disk_margins
+    gives the same phase figure (above 90 deg) as design.checks reports."""
+    L = control.tf([0.2], [1.0, 1.0])
+    w = np.logspace(-3, 3, 400)
+    dm, dgm, dpm = control.disk_margins(L, w)
+    got_db, got_deg = disk_figures(float(dm))
+    assert float(dm) > 2.0
+    assert got_deg == pytest.approx(float(dpm), rel=1e-9)
+    assert got_db == dgm == math.inf
 
 
 def test_check_grid_spans_a_decade_beyond_the_design_grid() -> None:
