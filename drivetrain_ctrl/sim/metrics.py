@@ -47,8 +47,9 @@ from numpy.typing import NDArray
 from ..core.serialize import json_ready
 from ..core.units import m_s_to_kmh, rad_s_to_rpm
 from ..core.validate import is_finite_real
+from ..kernels.physics import ChainData
 from ..plant.model import Model
-from .series import state_derivatives
+from .series import RunSeries, state_derivatives
 from .simulator import SimulationResult
 
 __all__ = [
@@ -298,12 +299,25 @@ def state_accelerations(res: SimulationResult) -> tuple[F64, F64]:
     (:func:`~drivetrain_ctrl.sim.series.state_derivatives`), equal to
     :meth:`Model.rhs <drivetrain_ctrl.plant.model.Model.rhs>` row by row to round-off.
     """
-    D = res.model.data
-    X = np.asarray(res.x, dtype=float)
-    U = np.asarray(res.u, dtype=float)
-    FM = np.asarray(res.fm, dtype=np.int64)
-    REG = np.asarray(res.reg, dtype=np.int64)
-    right = state_derivatives(D, X, U, FM, REG)
+    return _state_accelerations(_run_series(res, res.model.data))
+
+
+def _run_series(res: SimulationResult, D: ChainData) -> RunSeries:
+    """A :class:`~drivetrain_ctrl.sim.series.RunSeries` of ``res``'s arrays with model data ``D``."""
+    return RunSeries(
+        D,
+        np.asarray(res.x, dtype=float),
+        np.asarray(res.u, dtype=float),
+        np.asarray(res.fm, dtype=np.int64),
+        np.asarray(res.reg, dtype=np.int64),
+    )
+
+
+def _state_accelerations(s: RunSeries) -> tuple[F64, F64]:
+    """``(right, left)`` of :func:`state_accelerations` from ``s`` (its state derivatives are
+    ``right``; ``left`` is a copy with the event rows re-evaluated in the previous mode)."""
+    D, X, U, FM, REG = s.D, s.X, s.U, s.FM, s.REG
+    right = s.state_derivatives()
     left = right.copy()
     changed = np.zeros(X.shape[0], dtype=bool)
     if X.shape[0] > 1:
@@ -581,10 +595,16 @@ def engagement_metrics(
 
     # accelerations (only if something needs them)
     is_vehicle = vehicle in names and model.state_units[names.index(vehicle)] == "m/s"
+    # the run's per-sample arrays, each computed once and shared by the accelerations and the
+    # coupling torques (body forces, slip torques, mode matrices); the coupling torques use the
+    # data the run used (smoothed, if it was), the accelerations the model's own
+    # (as res.coupling_torques() and state_accelerations(res))
+    rs = _run_series(res, model.data)
+    rs_T = rs if res._data() is model.data else _run_series(res, res._data())
     right: F64 | None = None
     left: F64 | None = None
     if is_vehicle or i_lock is not None:
-        right, left = state_accelerations(res)
+        right, left = _state_accelerations(rs)
     if fc is not None and i_lock is not None and right is not None and left is not None:
         c = fc[1]
         r = float(model.data.ratio[c])
@@ -634,7 +654,7 @@ def engagement_metrics(
             err = np.asarray(reference(grid[trk]), dtype=float) - np.interp(grid[trk], t, w)
             out["tracking_rms_rpm"] = _rms(np.asarray(rad_s_to_rpm(err), dtype=float))
     if fc is not None and model.chain.sources and slips_in_slip_window and np.any(trk):
-        T = res.coupling_torques()
+        T = rs_T.coupling_torques()
         c1 = res.source_torques()[model.chain.sources[0].name]
         d = np.interp(grid[trk], t, T[:, fc[1]]) - np.interp(grid[trk], t, c1)
         out["torque_match_rms_Nm"] = _rms(d)
@@ -649,7 +669,7 @@ def engagement_metrics(
     c_shaft = _coupling_index(model, "backlash")
     if (c_axle is not None or c_shaft is not None) and np.any(in_w):
         if T is None:
-            T = res.coupling_torques()
+            T = rs_T.coupling_torques()
         if c_axle is not None:
             ratio = float(model.data.ratio[c_axle])
             out["axle_torque_max_Nm"] = float(np.max(np.abs(T[in_w, c_axle]))) * ratio

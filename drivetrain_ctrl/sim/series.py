@@ -9,7 +9,10 @@ simulation itself). Here the same formulas as
 :func:`~drivetrain_ctrl.kernels.physics.forces_into`, :func:`~drivetrain_ctrl.kernels.physics.rhs`
 and :func:`~drivetrain_ctrl.kernels.physics.coupling_torques` are written on columns of all
 samples, and the mode matrices ``P``, ``Lam`` are computed once per distinct stick/slip
-combination. The stuck torques are not re-implemented: the compiled
+combination. :class:`RunSeries` holds one run's arrays and computes each of these quantities
+at most once (the forces, the slip torques, the mode grouping and matrices are shared by the state
+derivatives and the coupling torques of :func:`~drivetrain_ctrl.sim.metrics.engagement_metrics`);
+the module functions are one-shot uses of it. The stuck torques are not re-implemented: the compiled
 :func:`~drivetrain_ctrl.kernels.physics.stuck_torques_rows` (the kernel's
 :func:`~drivetrain_ctrl.kernels.physics.stuck_torque` on every row of a mode) gives them from the
 forces computed here, the most feasible distribution in a statically indeterminate stuck set
@@ -30,7 +33,7 @@ from numpy.typing import NDArray
 from .. import kernels as K
 from ..kernels.physics import ChainData
 
-__all__ = ["body_forces", "coupling_torques", "state_derivatives", "stored_energy"]
+__all__ = ["RunSeries", "body_forces", "coupling_torques", "state_derivatives", "stored_energy"]
 
 F64 = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -70,9 +73,10 @@ def _slip_torques(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
     return out
 
 
-def body_forces(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
-    """(N, n) generalised torques on the bodies [N m or N] at every sample, without the stuck
-    (constraint) torques: :func:`~drivetrain_ctrl.kernels.physics.forces` on every row."""
+def _body_forces(s: RunSeries) -> F64:
+    """(N, n) generalised torques on the bodies of :func:`body_forces`, from ``s``'s shared
+    spring-damper and slip torques."""
+    D, X, U, REG = s.D, s.X, s.U, s.REG
     n = D.M.shape[0]
     w = X[:, :n]
     tau = -D.visc * w - D.quad * w * np.abs(w) + D.load
@@ -88,10 +92,10 @@ def body_forces(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
             g = g * (D.t_s[kt, r] * X[:, b] + D.t_o[kt, r])
         tau[:, b] += g * X[:, D.l_x[j]]
     for c in range(D.ratio.shape[0]):
-        T = _spring_damper(D, X, REG, c)
+        T = s.spring_damper(c)
         tau[:, c] -= T
         tau[:, c + 1] += D.ratio[c] * T
-    F = _slip_torques(D, X, U, FM, REG)
+    F = s.slip_torques()
     for f in range(D.f_kind.shape[0]):
         i = int(D.f_idx[f])
         tau[:, i] -= F[:, f]
@@ -131,17 +135,17 @@ def _mode_groups(FM: I64) -> tuple[I64, I64]:
     return np.asarray(FM[first], dtype=np.int64), np.asarray(inverse, dtype=np.int64).reshape(-1)
 
 
-def state_derivatives(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
-    """(N, nx) state derivative at every sample in the mode given for it (row ``k`` is
-    :meth:`Model.rhs(X[k], U[k], Mode(FM[k], REG[k])) <drivetrain_ctrl.plant.model.Model.rhs>`),
-    in state units per second."""
+def _state_derivatives(s: RunSeries) -> F64:
+    """(N, nx) state derivatives of :func:`state_derivatives`, from ``s``'s shared forces and
+    mode matrices."""
+    D, X, U = s.D, s.X, s.U
     N = X.shape[0]
     n = D.M.shape[0]
     out = np.zeros((N, X.shape[1]))
-    tau = body_forces(D, X, U, FM, REG)
-    modes, inv = _mode_groups(FM)
+    tau = s.body_forces()
+    modes, inv = s.mode_groups()
     for g in range(modes.shape[0]):
-        P, _ = K.mode_matrices(D, np.ascontiguousarray(modes[g]))
+        P, _ = s.mode_matrices(g)
         sel = inv == g
         out[sel, :n] = tau[sel] @ P.T
     for i in range(n):
@@ -155,28 +159,28 @@ def state_derivatives(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
     return out
 
 
-def coupling_torques(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
-    """(N, m) total torque of every coupling [N m] (upstream frame) at every sample: spring,
-    damper and friction, a stuck friction's constraint torque included
-    (:func:`~drivetrain_ctrl.kernels.physics.coupling_torques` on every row)."""
+def _coupling_torques(s: RunSeries) -> F64:
+    """(N, m) coupling torques of :func:`coupling_torques`, from ``s``'s shared spring-damper
+    and slip torques, forces and mode matrices."""
+    D, X, U, FM, REG = s.D, s.X, s.U, s.FM, s.REG
     N = X.shape[0]
     m = D.ratio.shape[0]
     out = np.empty((N, m))
     for c in range(m):
-        out[:, c] = _spring_damper(D, X, REG, c)
+        out[:, c] = s.spring_damper(c)
     coupled = [f for f in range(D.f_kind.shape[0]) if D.f_kind[f] == 0]
     if not coupled:
         return out
     stuck = FM == K.STUCK
     lam = np.zeros(FM.shape, dtype=float)
     if np.any(stuck[:, coupled]):
-        tau = body_forces(D, X, U, FM, REG)
-        modes, inv = _mode_groups(FM)
+        tau = s.body_forces()
+        modes, inv = s.mode_groups()
         for g in range(modes.shape[0]):
             if not np.any(modes[g] == K.STUCK):
                 continue
             fm = np.ascontiguousarray(modes[g], dtype=np.int64)
-            _, Lam = K.mode_matrices(D, fm)
+            _, Lam = s.mode_matrices(g)
             sel = inv == g
             # the kernel's one definition of the stuck torques (not a numpy re-implementation):
             # in a statically indeterminate stuck set the distribution is an LP's solution
@@ -188,11 +192,103 @@ def coupling_torques(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
                 Lam,
                 np.ascontiguousarray(tau[sel], dtype=float),
             )
-    F = _slip_torques(D, X, U, FM, REG)
+    F = s.slip_torques()
     for f in coupled:
         c = int(D.f_idx[f])
         out[:, c] += np.where(stuck[:, f], lam[:, f], F[:, f])
     return out
+
+
+class RunSeries:
+    """One run's arrays ``D``, ``X``, ``U``, ``FM``, ``REG`` and the per-sample quantities of
+    this module over them, each computed at most once (on first use) and then shared: the body
+    forces, slip and spring-damper torques, the mode grouping and each group's ``P``, ``Lam``,
+    the state derivatives and the coupling torques. The values are those of the module
+    functions (which are one-shot uses of it). The returned arrays are the cached ones: do not
+    modify them. Build one per result (and per ``D``: a smoothed run's coupling torques use its
+    smoothed data); it is not keyed on anything global.
+    """
+
+    def __init__(self, D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> None:
+        self.D = D
+        self.X = X
+        self.U = U
+        self.FM = FM
+        self.REG = REG
+        self._slip: F64 | None = None
+        self._springs: dict[int, F64] = {}
+        self._forces: F64 | None = None
+        self._groups: tuple[I64, I64] | None = None
+        self._matrices: dict[int, tuple[F64, F64]] = {}
+        self._derivatives: F64 | None = None
+        self._couplings: F64 | None = None
+
+    def slip_torques(self) -> F64:
+        """(N, nf) signed kinetic torque of every slipping friction element [N m], 0 elsewhere."""
+        if self._slip is None:
+            self._slip = _slip_torques(self.D, self.X, self.U, self.FM, self.REG)
+        return self._slip
+
+    def spring_damper(self, c: int) -> F64:
+        """(N,) torque of coupling ``c``'s spring and damper [N m] (upstream frame)."""
+        T = self._springs.get(c)
+        if T is None:
+            T = self._springs[c] = _spring_damper(self.D, self.X, self.REG, c)
+        return T
+
+    def body_forces(self) -> F64:
+        """(N, n) generalised torques on the bodies (:func:`body_forces`)."""
+        if self._forces is None:
+            self._forces = _body_forces(self)
+        return self._forces
+
+    def mode_groups(self) -> tuple[I64, I64]:
+        """(distinct friction-mode rows, index of each sample's row among them)."""
+        if self._groups is None:
+            self._groups = _mode_groups(self.FM)
+        return self._groups
+
+    def mode_matrices(self, g: int) -> tuple[F64, F64]:
+        """``(P, Lam)`` of mode group ``g`` of :meth:`mode_groups`
+        (:func:`~drivetrain_ctrl.kernels.physics.mode_matrices`)."""
+        PL = self._matrices.get(g)
+        if PL is None:
+            fm = np.ascontiguousarray(self.mode_groups()[0][g], dtype=np.int64)
+            P, Lam = K.mode_matrices(self.D, fm)
+            PL = self._matrices[g] = (P, Lam)
+        return PL
+
+    def state_derivatives(self) -> F64:
+        """(N, nx) state derivative at every sample (:func:`state_derivatives`)."""
+        if self._derivatives is None:
+            self._derivatives = _state_derivatives(self)
+        return self._derivatives
+
+    def coupling_torques(self) -> F64:
+        """(N, m) total torque of every coupling [N m] (:func:`coupling_torques`)."""
+        if self._couplings is None:
+            self._couplings = _coupling_torques(self)
+        return self._couplings
+
+
+def body_forces(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
+    """(N, n) generalised torques on the bodies [N m or N] at every sample, without the stuck
+    (constraint) torques: :func:`~drivetrain_ctrl.kernels.physics.forces` on every row."""
+    return RunSeries(D, X, U, FM, REG).body_forces()
+
+
+def state_derivatives(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
+    """(N, nx) state derivative at every sample in the mode given for it (row ``k`` is
+    :meth:`Model.rhs(X[k], U[k], Mode(FM[k], REG[k])) <drivetrain_ctrl.plant.model.Model.rhs>`),
+    in state units per second."""
+    return RunSeries(D, X, U, FM, REG).state_derivatives()
+
+
+def coupling_torques(D: ChainData, X: F64, U: F64, FM: I64, REG: I64) -> F64:
+    """(N, m) total torque of every coupling [N m] (upstream frame) at every sample: spring,
+    damper and friction, a stuck friction's constraint torque included
+    (:func:`~drivetrain_ctrl.kernels.physics.coupling_torques` on every row)."""
+    return RunSeries(D, X, U, FM, REG).coupling_torques()
 
 
 def stored_energy(D: ChainData, X: F64) -> F64:
