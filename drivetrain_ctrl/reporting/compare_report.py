@@ -325,7 +325,7 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
         "shuffle mode and the clutch's torque margin to breakaway.",
         "Design plant set: each controller checked here over its design's plant set (rebuilt "
         "from the controller file's design spec; a controller without one over the default set, "
-        f"the built-in design spec {dfn.get('default_plant_set')!r}'s plants): the worst case "
+        f"the plants of the built-in design spec {dfn.get('default_plant_set')!r}): the worst case "
         "over every plant and over the nominal-parameter plants; a designed controller's "
         "figures as its file records them ([design.achieved]) beside them.",
         *set_paras,

@@ -484,8 +484,8 @@ def _plants_of(spec: ControllerSpec) -> tuple[dict[str, Any], str]:
         return dict(own), "the controller file's design spec ([design.spec.plants])"
     kw = dict(load_design_spec(DEFAULT_PLANT_SET).plants)
     where = (
-        f"no design spec in the controller file: the default plant set (the built-in design "
-        f"spec {DEFAULT_PLANT_SET!r}'s plants)"
+        "no design spec in the controller file: the default plant set (the plants of the "
+        f"built-in design spec {DEFAULT_PLANT_SET!r})"
     )
     if spec.sample_period_s is not None:
         kw.update(sample_period=spec.sample_period_s, delay_samples=spec.delay_samples)

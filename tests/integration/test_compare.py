@@ -320,7 +320,7 @@ def test_design_plant_set_recomputed_and_certified_sector(client: Any) -> None:
     pap = d["paper"]
     assert pap["recorded"] is None and pap["reason"] is None
     assert (
-        f"default plant set (the built-in design spec {DEFAULT_PLANT_SET!r}"
+        f"default plant set (the plants of the built-in design spec {DEFAULT_PLANT_SET!r})"
         in (pap["plant_set_source"])
     )
     assert pap["plant_set"] == rob["plant_set"] and pap["worst"]["ms_max"] >= 1.0
