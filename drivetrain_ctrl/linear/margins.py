@@ -213,6 +213,8 @@ def disk_figures(alpha: float) -> tuple[float, float]:
     ``alpha``, as python-control's ``disk_margins`` gives them: with ``t = alpha/2`` the gain
     margin ``20 log10((1 + t)/(1 - t))`` (inf for ``alpha >= 2``) and the phase margin
     ``arccos((1 - t^2)/(1 + t^2)) = 2 atan(t)`` (90 at ``alpha = 2``, above 90 beyond)."""
+    if not alpha >= 0.0:
+        raise ValueError(f"alpha = {alpha!r}: a disk margin is a number >= 0 (or inf)")
     t = 0.5 * alpha
     gain_db = 20.0 * math.log10((1.0 + t) / (1.0 - t)) if alpha < 2.0 else math.inf
     c = (1.0 - t * t) / (1.0 + t * t) if math.isfinite(t) else -1.0

@@ -855,10 +855,9 @@ def compare(
         raise CompareError(f"t_end = {t_end!r}: must be a finite number > 0 [s] (or None)")
     if isinstance(n_series, bool) or not isinstance(n_series, int) or n_series < 2:
         raise CompareError(f"n_series = {n_series!r}: must be an integer >= 2")
-    if workers is not None and (
-        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
-    ):
-        raise CompareError(f"workers = {workers!r}: must be an integer >= 1")
+    from .runner import check_cluster_options  # dask only when a comparison runs
+
+    check_cluster_options(workers=workers, error=CompareError)
     if client is not None and workers is not None:
         raise CompareError("client: give a client or workers, not both")
     for name, flag in (("design_checks", design_checks), ("certificate", certificate)):

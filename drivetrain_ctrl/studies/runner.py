@@ -62,6 +62,7 @@ from .study import TEXT_METRICS, Criterion, Study, StudyError, load_study, sampl
 __all__ = [
     "KernelWarmup",
     "StudyRun",
+    "check_cluster_options",
     "dask_client",
     "folder_lock",
     "read_results",
@@ -159,6 +160,26 @@ def _fork_server() -> Iterator[None]:
         yield
 
 
+def check_cluster_options(
+    *,
+    client: Any = None,
+    workers: Any = None,
+    scheduler: Any = None,
+    error: type[ValueError] = StudyError,
+) -> None:
+    """Raise ``error`` naming the option unless ``workers`` is None or an integer >= 1,
+    ``scheduler`` None or a non-empty address, and at most one of ``client`` and
+    ``scheduler``/``workers`` is given (the options of :func:`dask_client`)."""
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+    ):
+        raise error(f"workers = {workers!r}: must be an integer >= 1")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise error(f"scheduler = {scheduler!r}: must be an address like tcp://host:8786")
+    if client is not None and (scheduler is not None or workers is not None):
+        raise error("client: give a client, or a scheduler address / workers, not both")
+
+
 @contextlib.contextmanager
 def dask_client(
     client: Any = None,
@@ -176,6 +197,7 @@ def dask_client(
     them, so that the local workers do not all compile at once. ``timing``: filled with
     ``startup_s`` (all of the above; of it ``startup_cluster_s`` up to a connected client and
     ``startup_warmup_s`` the workers' kernel loading) and ``shutdown_s`` [s]."""
+    check_cluster_options(client=client, workers=workers, scheduler=scheduler)
     from dask.distributed import Client, LocalCluster
 
     from ..sim.warmup import ensure_compiled
@@ -509,18 +531,11 @@ def run_study(
         study = load_study(study)
     if isinstance(out, bool) or not isinstance(out, str | Path) or not str(out).strip():
         raise StudyError(f"out = {out!r}: give an output folder")
-    if workers is not None and (
-        isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
-    ):
-        raise StudyError(f"workers = {workers!r}: must be an integer >= 1")
+    check_cluster_options(client=client, workers=workers, scheduler=scheduler)
     if chunk_size is not None and (
         isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1
     ):
         raise StudyError(f"chunk_size = {chunk_size!r}: must be an integer >= 1")
-    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
-        raise StudyError(f"scheduler = {scheduler!r}: must be an address like tcp://host:8786")
-    if client is not None and (scheduler is not None or workers is not None):
-        raise StudyError("client: give a client, or a scheduler address / workers, not both")
     if not callable(run):
         raise StudyError(f"run = {run!r}: must be a function from a Case to a record")
     out = Path(out)

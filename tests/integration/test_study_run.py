@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -347,3 +348,20 @@ def test_the_command_killed_mid_study_resumes_to_the_same_table(tmp_path: Path) 
     ) as c:
         run_study(f, out=tmp_path / "ref", client=c, progress=False)
     pd.testing.assert_frame_equal(read_results(out), read_results(tmp_path / "ref"))
+
+
+@pytest.mark.parametrize(
+    ("kw", "field"),
+    [
+        ({"workers": 0}, "workers = 0"),
+        ({"workers": True}, "workers = True"),
+        ({"scheduler": ""}, "scheduler = ''"),
+        ({"client": object(), "workers": 2}, "client: "),
+    ],
+)
+def test_dask_client_rejects_bad_options_naming_them(kw: dict[str, Any], field: str) -> None:
+    """Checked before any cluster starts (the same check as run_study's)."""
+    from drivetrain_ctrl.studies.runner import dask_client
+
+    with pytest.raises(StudyError, match=re.escape(field)), dask_client(**kw):
+        pass

@@ -272,3 +272,9 @@ def test_the_margins_of_a_delayed_loop_use_every_band_point_of_a_coarse_grid() -
     c2 = check_loop(p, control.tf([1.0], [1.0]), grid=[0.5, 2.0])
     assert c2.crossover_rad_s is not None and 0.5 < c2.crossover_rad_s < 2.0
     assert c2.phase_margin_deg is not None
+
+
+@pytest.mark.parametrize("alpha", [-1.0, float("nan")])
+def test_disk_figures_reject_a_negative_or_nan_margin(alpha: float) -> None:
+    with pytest.raises(ValueError, match="alpha = "):
+        disk_figures(alpha)
