@@ -463,12 +463,49 @@ def folder_lock(out: Path) -> Iterator[Path]:
 
 #: chunks in flight per worker (submitted ahead of the finished ones)
 WINDOW = 4
+#: the worker time [s] a default-sized chunk aims at: long enough that the per-chunk costs (a Dask
+#: task, a Parquet file written and flushed: tens of ms) stay a few per cent of it, short enough
+#: that the progress bar moves and an interruption loses little
+CHUNK_TARGET_S = 2.0
+#: the size of the first chunks, before a run's cost is known
+FIRST_CHUNK = 4
+#: the largest default chunk [runs]
+MAX_CHUNK = 1024
 
 
-def _chunked(items: Iterator[Any], size: int) -> Iterator[list[Any]]:
-    """``items`` in lists of ``size`` (the last one shorter), made as they are asked for."""
+class _ChunkSizer:
+    """The size of the next chunk. ``fixed``: always that. Otherwise :data:`FIRST_CHUNK` until a
+    chunk has come back, then the runs that take about :data:`CHUNK_TARGET_S` on one worker (the
+    cost of a run estimated from the wall time so far times the workers, over the runs done),
+    at most :data:`MAX_CHUNK`, and at most the remaining runs over twice the workers, so that the
+    last chunks share out evenly."""
+
+    def __init__(self, fixed: int | None, total: int, workers: int) -> None:
+        self.fixed, self.remaining, self.workers = fixed, total, max(1, workers)
+        self.done = 0
+        self.tic = time.perf_counter()
+
+    def finished(self, rows: int) -> None:
+        self.done += rows
+
+    def size(self) -> int:
+        if self.fixed is not None:
+            n = self.fixed
+        elif self.done == 0:
+            n = FIRST_CHUNK
+        else:
+            per_run = (time.perf_counter() - self.tic) * self.workers / self.done
+            n = round(CHUNK_TARGET_S / max(per_run, 1e-6))
+            n = min(n, MAX_CHUNK, math.ceil(self.remaining / (2 * self.workers)))
+        n = max(1, min(n, self.remaining))
+        self.remaining -= n
+        return n
+
+
+def _chunked(items: Iterator[Any], size: Callable[[], int]) -> Iterator[list[Any]]:
+    """``items`` in lists of ``size()`` (asked for each list), made as they are asked for."""
     while True:
-        ch = list(itertools.islice(items, size))
+        ch = list(itertools.islice(items, size()))
         if not ch:
             return
         yield ch
@@ -521,7 +558,8 @@ def run_study(
     ``client``: a :class:`dask.distributed.Client` to run on (left open); else ``scheduler``: the
     address of a running Dask scheduler to connect to; else a local cluster of ``workers`` worker
     processes (default: the number of cores), one thread each, closed at the end.
-    ``chunk_size``: runs per task (default: up to 32, at least 4 tasks per worker).
+    ``chunk_size``: runs per task (default: sized as the study goes to about
+    :data:`CHUNK_TARGET_S` of work each, :class:`_ChunkSizer`).
     ``progress``: a progress bar on stderr (runs done, failed, remaining, ETA). ``run``: the
     function from a case to a record (default :func:`run_case`; a picklable replacement serves
     tests). Returns a :class:`StudyRun`; the table is :func:`read_results` of ``out``.
@@ -568,11 +606,11 @@ def _run_locked(
 
         with dask_client(client, workers=workers, scheduler=scheduler) as client:
             n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-            size = chunk_size or max(1, min(32, math.ceil(n_todo / (4 * n_workers))))
+            sizer = _ChunkSizer(chunk_size, n_todo, n_workers)
             # the chunks are made and submitted as the earlier ones finish: at most WINDOW per
             # worker in flight, so the driver holds the cases and rows of a few chunks only,
             # however many rows the study has
-            chunks = _chunked(_items(study, samples, missing), size)
+            chunks = _chunked(_items(study, samples, missing), sizer.size)
 
             def submit(ch: list[Any]) -> Any:
                 return client.submit(
@@ -595,6 +633,7 @@ def _run_locked(
                 for fut in pending:
                     rows = fut.result()
                     fut.release()
+                    sizer.finished(len(rows))
                     nxt = next(chunks, None)
                     if nxt is not None:
                         pending.add(submit(nxt))
