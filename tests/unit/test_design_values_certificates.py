@@ -14,6 +14,7 @@ from drivetrain_ctrl.design.certificates import (
     _Lure,
     _sector_verify,
     common_lyapunov,
+    sampled_loop,
     zoh_with_delay,
 )
 
@@ -84,6 +85,21 @@ def test_zoh_of_a_two_input_plant_with_fractional_delay_and_long_buffer() -> Non
     assert P2.nstates == 2 + 2 * 2
     z = np.exp(1j * np.array([0.3, 3.0, 20.0]) * T)
     assert Pd(z) == pytest.approx(P2(z), rel=1e-10)
+
+
+def test_a_sampled_loop_has_no_delay_by_default() -> None:
+    """sampled_loop(G, K) without a delay: the closed loop of K and the ZOH samples of G,
+    feedback(K Pd, 1) with Pd from python-control's sample_system (one state per plant state,
+    no input buffer)."""
+    T = 0.05
+    G = control.tf([2.0], [1.0, 3.0])
+    K = control.tf([1.5, -1.2], [1.0, -1.0], T)
+    cl = sampled_loop(G, K)
+    ref = control.feedback(K * control.sample_system(G, T, method="zoh"), 1)
+    assert cl.nstates == 2
+    got = np.sort_complex(np.asarray(cl.poles()))
+    want = np.sort_complex(np.asarray(ref.poles()))
+    assert got == pytest.approx(want, abs=1e-10)
 
 
 @pytest.mark.xfail(
