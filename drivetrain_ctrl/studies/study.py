@@ -611,8 +611,11 @@ class Study:
 
     @property
     def digest(self) -> str:
-        """SHA-256 of :meth:`to_dict`: results in a folder belong to the study with this digest."""
-        text = json.dumps(self.to_dict(), sort_keys=True, default=str)
+        """SHA-256 of :meth:`to_dict` and the parameters' order (the j-th parameter takes the j-th
+        column of the unit sample, so the order changes the samples): results in a folder
+        belong to the study with this digest."""
+        d = {**self.to_dict(), "parameter_order": [p.name for p in self.parameters]}
+        text = json.dumps(d, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()
 
     def summary(self) -> str:
