@@ -180,8 +180,10 @@ def _modes(
     for i, M in enumerate(items):
         if isinstance(M, control.LTI):
             S = control.ss(M)
+            if S.dt is True:  # discrete, period unknown: not to be judged as continuous
+                raise ValueError(f"modes[{i}].dt = True: give the sample period in seconds")
             A = np.asarray(S.A, dtype=float)
-            dts.add(0.0 if not S.dt or S.dt is True else float(S.dt))
+            dts.add(0.0 if not S.dt else float(S.dt))
         else:
             try:
                 A = np.asarray(M, dtype=float)

@@ -102,12 +102,6 @@ def test_a_sampled_loop_has_no_delay_by_default() -> None:
     assert got == pytest.approx(want, abs=1e-10)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="common_lyapunov maps a StateSpace with dt=True (discrete, unspecified period) to "
-    "dt = 0 and tests a discrete A with the continuous inequality (sector_certificate rejects "
-    "dt=True with an error)",
-)
 def test_a_discrete_system_with_unspecified_period_is_not_judged_continuous() -> None:
     """x+ = 0.5 x is a stable discrete mode. common_lyapunov must either refuse dt = True (as
     sector_certificate does, naming it) or test it as discrete: P = 1 gives 0.25 - 1 < 0."""
