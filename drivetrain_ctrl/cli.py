@@ -69,7 +69,7 @@ from .plant.params import (
     field_paths,
     load_params,
 )
-from .scenarios.scenario import Scenario, ScenarioError, builtin_scenarios, load_scenario
+from .scenarios.scenario import LOOPS, Scenario, ScenarioError, builtin_scenarios, load_scenario
 from .sim.metrics import METRICS, metric_table
 from .sim.simulator import SimulationOptions, ZenoError
 from .sim.warmup import ensure_compiled
@@ -151,11 +151,13 @@ def run_simulation(
     t_end: float | None = None,
     plots: bool = True,
     controller: str | None = None,
+    loop: str | None = None,
 ) -> dict[str, Any]:
     """Simulate ``scenario`` on the ``kind`` model of ``params`` and write the outputs to ``out``.
 
     ``controller``: a built-in controller name or a controller TOML file (closed loop), None for
-    an open-loop run.
+    an open-loop run. ``loop``: ``"closed"``, ``"open"`` or None (the scenario's own; a scenario
+    with both a controller part and a pedal signal runs closed loop unless told otherwise).
 
     Returns ``{"metrics": ..., "timing": ..., "files": [...]}``. Raises :class:`InputError`
     for invalid options and :class:`RunError` if the simulation fails.
@@ -170,7 +172,7 @@ def run_simulation(
     except ValueError as exc:
         raise InputError(f"--rtol: {exc}") from None
     try:
-        scenario.check_horizon(t_end, arg="--t-end")
+        scenario.for_loop(loop).check_horizon(t_end, arg="--t-end")
     except ScenarioError as exc:
         raise InputError(str(exc)) from None
     try:
@@ -178,6 +180,7 @@ def run_simulation(
             scenario=scenario,
             params=params,
             model=kind,
+            loop=loop,
             controller=controller,
             rtol=rtol,
             t_end=t_end,
@@ -193,6 +196,7 @@ def run_simulation(
     metrics = run.metrics
     record: dict[str, Any] = {
         "scenario": scenario.name,
+        "loop": run.scenario.loop,
         "parameter_set": params.name,
         "controller": spec.to_dict() if spec is not None else None,
         "rtol": opts.rtol,
@@ -327,6 +331,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         rtol=args.rtol,
         t_end=args.t_end,
         controller=args.controller,
+        loop=args.loop,
     )
     print(_summary_line(r["metrics"], r["timing"]))
     print(f"  outputs: {out}/ ({', '.join(r['files'])})")
@@ -846,6 +851,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help=f"closed loop: {_controller_names(', ')} or a controller .toml file "
         "(paper: law 6; default: open loop; paper-start needs one)",
+    )
+    sp.add_argument(
+        "--loop",
+        choices=LOOPS,
+        default=None,
+        help="closed: the controller drives the pedal; open: the scenario's pedal signal does "
+        "(default: the scenario's own, closed if it has a [controller] table)",
     )
     sp.set_defaults(func=_cmd_simulate)
 

@@ -42,18 +42,26 @@ worn clutch: ``k12_max = { scale = 0.7 }``). The overrides are applied by
 runs on, and validated like a parameter set when the file is loaded (an unknown field or a bad
 value is a ScenarioError naming ``params.<section>.<field>`` and the value).
 
-A closed-loop scenario has a ``[controller]`` table instead of ``[inputs.pedal]``: the
-engine-speed reference ``reference_rpm`` (a signal table, rpm), the controller's output before it
-starts ``pedal0`` [m] and its start time ``start_s`` [s].
+A closed-loop scenario has a ``[controller]`` table: the engine-speed reference
+``reference_rpm`` (a signal table, rpm), the controller's output before it starts ``pedal0`` [m]
+and its start time ``start_s`` [s]. An open-loop scenario has ``[inputs.pedal]`` instead: the
+pedal (actuator position x_c) a driver would give. A scenario may have both: then it runs either
+way, one run at a time (the *loop*, :data:`LOOPS`): ``"closed"``, the controller drives the pedal
+and ``[inputs.pedal]`` is not used; ``"open"``, the pedal signal drives it and the ``[controller]``
+table is not used. A scenario's own loop, when none is chosen, is ``"closed"`` if it has a
+``[controller]`` table, else ``"open"`` (:attr:`Scenario.loop`); :meth:`Scenario.for_loop` gives
+the scenario as one loop runs it.
 
 The built-in scenarios (:func:`builtin_scenarios`) are such files, shipped in
-``scenarios/builtin/``: ``engage-ramp``, ``tip-in`` and ``paper-start``, and the harder starts
-``hill-start``, ``worn-clutch``, ``judder``, ``heavy-load`` and ``tip-out-reengage`` (each file's
-header says what it tests).
+``scenarios/builtin/``: ``engage-ramp`` and ``tip-in`` (open loop), ``paper-start`` and the
+harder starts ``hill-start``, ``worn-clutch``, ``judder``, ``heavy-load`` and ``tip-out-reengage``
+(both loops: a controller and a driver's pedal). Each file's header says what it tests and why
+its pedal has the shape it has.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -79,7 +87,17 @@ from ..core.validate import ParameterError, is_finite_real, real_number, reject_
 from ..plant.drivetrain import INPUTS, Drivetrain
 from ..plant.params import DrivetrainParams, default_params, load_params
 
-__all__ = ["Scenario", "builtin_scenarios", "load_scenario", "ScenarioError", "idle_throttle"]
+__all__ = [
+    "LOOPS",
+    "Scenario",
+    "builtin_scenarios",
+    "load_scenario",
+    "ScenarioError",
+    "idle_throttle",
+]
+
+#: the loops a scenario can run in: the controller drives the pedal, or the pedal signal does
+LOOPS: tuple[str, ...] = ("closed", "open")
 
 
 class ScenarioError(ValueError):
@@ -174,8 +192,6 @@ class Scenario:
         missing = needed - set(names)
         if missing:
             raise ScenarioError(f"{self.name}: missing input(s) {sorted(missing)}")
-        if self.needs_controller and "pedal" in names:
-            raise ScenarioError(f"{self.name}: inputs.pedal is driven by the controller; remove it")
         if self.control_start is not None:
             cs = self.control_start
             if not (math.isfinite(cs) and 0.0 <= cs < self.t_end):
@@ -269,12 +285,62 @@ class Scenario:
 
     @property
     def needs_controller(self) -> bool:
-        """True if the pedal is driven by a closed-loop controller (the scenario gives the
-        engine-speed reference, not the pedal)."""
+        """True if the scenario's own loop (:attr:`loop`) is closed: a controller drives the pedal
+        to follow the engine-speed reference (the scenario may also give an open-loop pedal,
+        used with ``loop="open"``)."""
         return self.reference is not None
 
+    @property
+    def loops(self) -> tuple[str, ...]:
+        """The loops (:data:`LOOPS`) this scenario can run in: ``"closed"`` if it has an
+        engine-speed reference (``[controller]``), ``"open"`` if it has a pedal signal
+        (``[inputs.pedal]``)."""
+        has = {"closed": self.reference is not None, "open": "pedal" in dict(self.inputs)}
+        return tuple(k for k in LOOPS if has[k])
+
+    @property
+    def loop(self) -> str:
+        """The scenario's own loop, run when none is chosen: ``"closed"`` if it has a
+        ``[controller]`` table, else ``"open"``."""
+        return "closed" if self.reference is not None else "open"
+
+    def for_loop(self, loop: str | None) -> Scenario:
+        """This scenario as ``loop`` (``"closed"``, ``"open"``; None: its own, :attr:`loop`)
+        runs it: ``"open"`` drops the controller part (reference, start time), ``"closed"`` the
+        pedal signal; ``self`` if there is nothing to drop. ScenarioError naming ``loop`` and its
+        value if it is not one of :data:`LOOPS`, or if the scenario lacks the part that loop
+        needs."""
+        if loop is None:
+            loop = self.loop
+        if not isinstance(loop, str) or loop not in LOOPS:
+            raise ScenarioError(
+                f"loop = {loop!r}: must be one of {LOOPS} (or None: the scenario's own)"
+            )
+        if loop not in self.loops:
+            part = (
+                "no [controller] table (an engine-speed reference for the controller to follow)"
+                if loop == "closed"
+                else "no [inputs.pedal] signal (the pedal a driver would give)"
+            )
+            raise ScenarioError(
+                f"loop = {loop!r}: scenario {self.name!r} has {part}; it runs in loop "
+                f"{' or '.join(repr(k) for k in self.loops)}"
+            )
+        if loop == "open":
+            if self.reference is None:
+                return self
+            return dataclasses.replace(self, reference=None, control_start=None)
+        if "pedal" not in dict(self.inputs):
+            return self
+        return dataclasses.replace(
+            self, inputs=tuple((n, s) for n, s in self.inputs if n != "pedal")
+        )
+
     def input_signals(self) -> dict[str, Signal]:
-        return dict(self.inputs)
+        """The input signals by name, as the scenario's own loop uses them: a closed-loop
+        scenario's pedal signal (its open-loop part) left out (the controller drives the
+        pedal)."""
+        return {n: s for n, s in self.inputs if not (n == "pedal" and self.needs_controller)}
 
     def check_pedal0(self, params: DrivetrainParams) -> None:
         """Raise :class:`ScenarioError` unless ``pedal0`` (the controller's initial output [m])
@@ -294,8 +360,8 @@ class Scenario:
             return controller
         if self.reference is None:
             raise ScenarioError(
-                f"scenario {self.name!r} is open loop (it gives the pedal signal); it takes no "
-                "controller"
+                f"scenario {self.name!r} is open loop here (it gives the pedal signal, no "
+                "engine-speed reference); it takes no controller"
             )
         spec = load_controller(controller)
         return spec.build(dt.params, reference=self.reference, start_time=self.control_start)
@@ -491,16 +557,10 @@ def scenario_from_dict(d: dict[str, Any], *, params: DrivetrainParams | None = N
             pedal0 = _num("controller.", ctl, "pedal0")
         if "start_s" in ctl:
             start = _num("controller.", ctl, "start_s")
-    if reference is not None and "pedal" in inputs:
-        raise ScenarioError(
-            "inputs.pedal: the pedal is driven by the controller of this scenario "
-            "([controller] reference_rpm); remove [inputs.pedal] (the controller's initial "
-            "output is controller.pedal0)"
-        )
     sigs = []
     for n in INPUTS:
-        if n == "pedal" and reference is not None:
-            continue
+        if n == "pedal" and reference is not None and "pedal" not in inputs:
+            continue  # closed loop only
         if n not in inputs:
             raise ScenarioError(f"inputs.{n}: missing")
         try:

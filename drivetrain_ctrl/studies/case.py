@@ -3,7 +3,8 @@
 A case names everything a run needs, by value or by name: the scenario (built-in name, TOML file
 or :class:`~drivetrain_ctrl.scenarios.Scenario`), the parameter set (name, TOML file or
 :class:`~drivetrain_ctrl.plant.params.DrivetrainParams`) with overrides by dotted parameter name,
-the model kind, the controller (built-in name, TOML file or
+the model kind, the loop (closed: a controller drives the pedal; open: the scenario's pedal
+signal does), the controller (built-in name, TOML file or
 :class:`~drivetrain_ctrl.control.laws.ControllerSpec`; None for open loop) and the integrator
 tolerance. :func:`simulate_case` runs it and returns the result with its context;
 :func:`run_case` returns only the flat record of metrics (what a study keeps per sample). The CLI,
@@ -45,7 +46,7 @@ from ..linear.margins import _auto_grid, loop_margins
 from ..linear.operating_point import OperatingPoint, slip_point_after_start
 from ..plant.drivetrain import Drivetrain
 from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
-from ..scenarios.scenario import Scenario, load_scenario
+from ..scenarios.scenario import LOOPS, Scenario, load_scenario
 from ..sim.metrics import engagement_metrics
 from ..sim.run import run_scenario
 from ..sim.simulator import SimulationOptions, SimulationResult, ZenoError
@@ -94,6 +95,9 @@ class Case:
     scenario_overrides: ``{field: value}`` replacing fields of the scenario, one of
     :data:`SCENARIO_FIELDS` (SI units: ``{"slope": 0.05}`` is a 5 % road grade in rad).
     model: ``"full"`` or ``"reduced"``.
+    loop: ``"closed"`` (the controller drives the pedal to follow the scenario's engine-speed
+    reference), ``"open"`` (the scenario's pedal signal drives it; no controller) or None: the
+    scenario's own (closed if it has a ``[controller]`` table; :meth:`Scenario.for_loop`).
     controller: built-in name, controller TOML file or :class:`ControllerSpec`; None: open loop.
     rtol: the integrator's relative tolerance (None: :class:`SimulationOptions`' default).
     t_end: end of the run [s] (None: the scenario's horizon).
@@ -106,6 +110,7 @@ class Case:
     overrides: Mapping[str, Any] = field(default_factory=dict)
     scenario_overrides: Mapping[str, float] = field(default_factory=dict)
     model: str = "full"
+    loop: str | None = None
     controller: str | Path | ControllerSpec | None = None
     rtol: float | None = None
     t_end: float | None = None
@@ -115,6 +120,10 @@ class Case:
     def __post_init__(self) -> None:
         if self.model not in MODELS:
             raise CaseError(f"model = {self.model!r}: must be one of {MODELS}")
+        if self.loop is not None and (not isinstance(self.loop, str) or self.loop not in LOOPS):
+            raise CaseError(
+                f"loop = {self.loop!r}: must be one of {LOOPS} or None (the scenario's own)"
+            )
         if not isinstance(self.overrides, Mapping) or not all(
             isinstance(k, str) for k in self.overrides
         ):
@@ -170,14 +179,15 @@ class CaseRun:
     linear: dict[str, Any] | None = None
 
     def record(self) -> dict[str, Any]:
-        """The flat record of this run: what ran (scenario, model, parameter set, controller name,
-        tolerances, label, each override as ``param:<name>``), every engagement metric and the
+        """The flat record of this run: what ran (scenario, loop, model, parameter set, controller
+        name, tolerances, label, each override as ``param:<name>``), every engagement metric and the
         linear figures if computed; numbers rounded by
         :func:`~drivetrain_ctrl.core.serialize.json_ready`."""
         c = self.case
         out: dict[str, Any] = {
             "label": c.label,
             "scenario": self.scenario.name,
+            "loop": self.scenario.loop,
             "parameter_set": self.drivetrain.params.name,
             "controller": self.spec.name if self.spec is not None else None,
             "rtol": self.options.rtol,
@@ -311,16 +321,24 @@ def _drivetrain(scenario: Scenario, params: DrivetrainParams, kind: str) -> Driv
     return dt
 
 
-def _spec(case: Case, scenario: Scenario) -> ControllerSpec | None:
+def _spec(case: Case, scenario: Scenario, loops: tuple[str, ...]) -> ControllerSpec | None:
+    """The controller spec of ``case`` on ``scenario`` (as its loop runs it; ``loops``: the
+    loops the scenario file has)."""
     if case.controller is None:
         if scenario.needs_controller:
             names = "|".join(builtin_controllers())
+            alt = "; or loop = 'open' for its open-loop pedal" if "open" in loops else ""
             raise CaseError(
                 f"scenario {scenario.name!r} needs a controller (it gives the engine-speed "
-                f"reference, not the pedal): controller = {names}|FILE.toml"
+                f"reference, not the pedal): controller = {names}|FILE.toml{alt}"
             )
         return None
     if not scenario.needs_controller:
+        if case.loop == "open":
+            raise CaseError(
+                f"controller = {case.controller!r}: loop = 'open' runs the pedal signal of "
+                f"scenario {scenario.name!r}; drop the controller or use loop = 'closed'"
+            )
         raise CaseError(
             f"controller = {case.controller!r}: scenario {scenario.name!r} is open loop (it gives "
             "the pedal signal); drop the controller or use a closed-loop scenario (paper-start)"
@@ -459,6 +477,8 @@ def simulate_case(case: Case, *, preload: bool = False) -> CaseRun:
         if case.scenario_overrides:
             changes: dict[str, Any] = dict(case.scenario_overrides)
             scenario = dataclasses.replace(scenario, **changes)
+        loops = scenario.loops
+        scenario = scenario.for_loop(case.loop)
         options = SimulationOptions() if case.rtol is None else SimulationOptions(rtol=case.rtol)
     except FileNotFoundError as exc:
         raise CaseError(f"file not found: {exc.filename or exc}") from None
@@ -470,7 +490,7 @@ def simulate_case(case: Case, *, preload: bool = False) -> CaseRun:
         scenario.initial_state(dt)  # validates the initial state for this model
     except ValueError as exc:
         raise CaseError(f"scenario {scenario.name!r}: {exc}") from None
-    spec = _spec(case, scenario)
+    spec = _spec(case, scenario, loops)
     try:
         ctrl = scenario.make_controller(dt, spec)  # built once: warnings once, one object
         load_s = 0.0
@@ -508,6 +528,7 @@ def run_case(case: Case) -> dict[str, Any]:
                 if case.controller is None
                 else str(getattr(case.controller, "name", case.controller))
             ),
+            "loop": case.loop,
             "model": case.model,
             **{f"param:{k}": v for k, v in sorted(case.overrides.items())},
             **{f"param:scenario.{k}": v for k, v in sorted(case.scenario_overrides.items())},

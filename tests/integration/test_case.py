@@ -52,6 +52,15 @@ def test_closed_loop_case_records_the_controller_name() -> None:
         ({"controller": "paper"}, "open loop"),
         ({"controller": "nope"}, "nope"),
         ({"t_end": 0.05, "scenario": "paper-start", "controller": "paper"}, "t_end = 0.05"),
+        ({"loop": "half"}, "loop = 'half'"),
+        ({"loop": True}, "loop = True"),
+        (
+            {"loop": "closed", "controller": "paper"},
+            "loop = 'closed': scenario 'engage-ramp' has no",
+        ),
+        ({"scenario": "paper-start", "loop": "closed"}, "needs a controller"),
+        ({"scenario": "paper-start"}, "or loop = 'open' for its open-loop pedal"),
+        ({"scenario": "paper-start", "loop": "open", "controller": "pi"}, "loop = 'open' runs"),
     ],
 )
 def test_bad_cases_are_rejected_naming_the_field(kw: dict, msg: str) -> None:
@@ -84,4 +93,33 @@ def test_the_cli_and_run_case_give_the_same_metrics(tmp_path) -> None:
     cli = json.loads((tmp_path / "metrics.json").read_text())
     rec = run_case(Case(scenario="engage-ramp", model="reduced"))
     for k in ("lockup_time_s", "clutch_energy_J", "n_events", "n_samples", "energy_residual_rel"):
+        assert cli[k] == rec[k], k
+
+
+def test_the_loop_of_a_case_chooses_the_part_of_the_scenario() -> None:
+    """paper-start has both parts: loop "open" runs its pedal signal (no controller, no
+    reference), the default its controller; the CLI's --loop is the same case."""
+    own = simulate_case(Case(scenario="paper-start", model="reduced", controller="paper"))
+    closed = simulate_case(
+        Case(scenario="paper-start", model="reduced", controller="paper", loop="closed")
+    )
+    op = simulate_case(Case(scenario="paper-start", model="reduced", loop="open"))
+    assert own.metrics == closed.metrics and own.record()["loop"] == "closed"
+    assert op.record()["loop"] == "open" and op.controller is None and op.spec is None
+    assert op.scenario.reference is None and op.metrics["tracking_rms_rpm"] is None
+    ip = op.result.model.input_names.index("pedal")
+    pedal = op.result.u[:, ip]
+    sig = op.scenario.input_signals()["pedal"]
+    assert pedal == pytest.approx([float(sig(t)) for t in op.result.t], abs=1e-15)
+    assert op.metrics["lockup_time_s"] != closed.metrics["lockup_time_s"]
+    assert Case(scenario="paper-start", loop="open") != Case(scenario="paper-start")
+
+
+def test_the_cli_runs_the_open_loop(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    args = ["simulate", "--scenario", "hill-start", "--model", "reduced", "--loop", "open"]
+    assert main([*args, "--out", str(tmp_path)]) == 0
+    cli = json.loads((tmp_path / "metrics.json").read_text())
+    rec = run_case(Case(scenario="hill-start", model="reduced", loop="open"))
+    assert cli["loop"] == rec["loop"] == "open" and cli["controller"] is None
+    for k in ("lockup_time_s", "clutch_energy_J", "rollback_m", "energy_residual_rel"):
         assert cli[k] == rec[k], k

@@ -1,5 +1,7 @@
 """The harder built-in starts of issue 21 (item 1): hill-start, worn-clutch, judder, heavy-load
-and tip-out-reengage. Their parameter overrides, and each one's physical claim, from runs."""
+and tip-out-reengage. Their parameter overrides, and each one's physical claim, from runs, in
+closed loop (a controller) and in open loop (the driver's pedal of the file); every built-in
+scenario in every loop it has on both models."""
 
 from __future__ import annotations
 
@@ -17,15 +19,20 @@ from drivetrain_ctrl.linear import judder_threshold
 from drivetrain_ctrl.linear.operating_point import operating_point_from_result
 from drivetrain_ctrl.scenarios import ScenarioError, builtin_scenarios
 from drivetrain_ctrl.scenarios.scenario import scenario_from_dict
+from drivetrain_ctrl.studies.case import Case, simulate_case
 
 HARD = ("hill-start", "worn-clutch", "judder", "heavy-load", "tip-out-reengage")
+#: the starts: a controller part and a driver's pedal each
+STARTS = ("paper-start", *HARD)
 
 
-def _run(name: str, controller: str = "paper", kind: str = "reduced", **replace):  # type: ignore[no-untyped-def]
+def _run(name: str, controller: str | None = "paper", kind: str = "reduced", **replace):  # type: ignore[no-untyped-def]
+    """``controller`` None: the open loop (the file's pedal signal)."""
     p = default_params()
     sc = load_scenario(name, params=p)
     if replace:
         sc = dataclasses.replace(sc, **replace)
+    sc = sc.for_loop("closed" if controller is not None else "open")
     dt = sc.drivetrain(p, kind=kind)
     res = run_scenario(sc, dt, controller=controller)
     m = engagement_metrics(res, dt, start=sc.start_time, reference=sc.reference)
@@ -48,6 +55,9 @@ def test_builtins_listed_with_their_claims() -> None:
     for name in HARD:
         sc = b[name]
         assert sc.needs_controller and sc.description and "{throttle0}" not in sc.description
+    for name in STARTS:  # closed loop by default, and a driver's pedal for the open loop
+        assert b[name].loops == ("closed", "open") and b[name].loop == "closed", name
+    assert b["engage-ramp"].loops == b["tip-in"].loops == ("open",)  # pedal manoeuvres only
     assert b["hill-start"].slope == pytest.approx(math.atan(0.12), rel=1e-12)
     assert b["heavy-load"].gear == 2
 
@@ -113,6 +123,38 @@ def test_matrix(name: str, controller: str, kind: str) -> None:
     assert m["lockup_time_s"] is not None and m["lockup_time_s"] < sc.t_end - 0.5
     assert not m["engine_stalled"]
     assert res.energy_residual_rel is None or res.energy_residual_rel < 1e-6
+
+
+# -- every built-in scenario, in every loop it has, on both models -------------------------------------
+
+_MATRIX = [
+    (name, loop, kind)
+    for name, sc in builtin_scenarios().items()
+    for loop in sc.loops
+    for kind in ("full", "reduced")
+]
+
+
+@pytest.mark.parametrize(("name", "loop", "kind"), _MATRIX)
+def test_every_scenario_in_every_loop_runs_to_its_horizon(name: str, loop: str, kind: str) -> None:
+    """Through :class:`Case` (the path of the CLI, the studies and the comparison); about 4 s for
+    all of them."""
+    run = simulate_case(
+        Case(
+            scenario=name,
+            loop=loop,
+            model=kind,
+            controller="paper" if loop == "closed" else None,
+        )
+    )
+    sc, m = run.scenario, run.metrics
+    assert sc.loop == loop and run.record()["loop"] == loop
+    assert (run.controller is not None) == (loop == "closed")
+    assert m["status"] == "ok"
+    assert run.result.t_last == pytest.approx(sc.t_end, abs=1e-12)
+    r = run.result.energy_residual_rel
+    assert r is not None and math.isfinite(r) and r < 1e-6
+    assert m["inconsistent_decisions"] == 0
 
 
 # -- the physical claims ------------------------------------------------------------------------------
@@ -226,3 +268,78 @@ def test_tip_out_during_slip_then_one_lock_up() -> None:
     w = _col(res, "omega_engine")
     assert np.min(w[lifted]) < np.max(w[(t > 0.5) & (t < 1.0)])
     assert np.min(w[t > 0.5]) > rpm_to_rad_s(800.0)
+
+
+# -- the open loop: the driver's pedal of each file -------------------------------------------------
+
+
+def test_paper_start_open_loop_is_the_rougher_baseline() -> None:
+    """The driver's pedal locks up sooner than law (6) but jerks beyond the comparison's limit
+    (25 m/s^3), which law (6) stays within."""
+    _, _, _, m_open = _run("paper-start", None)
+    _, _, _, m_closed = _run("paper-start")
+    assert m_open["lockup_time_s"] < m_closed["lockup_time_s"]
+    assert m_open["jerk_max_m_s3"] > 25.0 > m_closed["jerk_max_m_s3"]
+
+
+def test_hill_start_open_loop_holds_the_car() -> None:
+    """The driver's pedal carries more than the grade torque when the brake ramp starts, so the
+    car rolls back less than the stated limit."""
+    sc, dt, res, m = _run("hill-start", None)
+    df = res.to_dataframe()
+    held = res.t < 1.0
+    assert set(df["mode_brake"].to_numpy()[held]) == {"holding"}
+    p = dt.params
+    grade = p.vehicle.M_v * 9.80665 * math.sin(sc.slope) * p.driveline.R_p / p.gearbox.tau_t(1)
+    i_rel = int(np.searchsorted(res.t, 1.0))
+    assert df["T_clutch [N m]"].to_numpy()[i_rel] > grade
+    assert np.min(_col(res, "pos_vehicle")) > -ROLLBACK_LIMIT_M
+    assert m["lockup_time_s"] is not None and not m["engine_stalled"]
+
+
+def test_worn_clutch_open_loop_slips_longer_than_the_new_clutch() -> None:
+    """The same pedal on the worn clutch: 0.7 times the torque, a later lock-up, more heat."""
+    _, _, res, m = _run("worn-clutch", None)
+    _, _, _, m_new = _run("paper-start", None)
+    T = res.to_dataframe()["T_clutch [N m]"].to_numpy()
+    assert np.max(np.abs(T)) <= 0.7 * default_params().clutch.k12_max * (1 + 1e-9)
+    assert m["lockup_time_s"] > m_new["lockup_time_s"] + 0.3
+    assert m["clutch_energy_J"] > 1.5 * m_new["clutch_energy_J"]
+
+
+def _swing(r) -> float:  # type: ignore[no-untyped-def]
+    """Peak-to-peak clutch torque [N m] in forward slip below 40 rad/s after 0.6 s."""
+    df = r.to_dataframe()
+    s = _slip(r)
+    w = (s > 0.0) & (s < 40.0) & (r.t > 0.6) & (df["mode_clutch"].to_numpy() == "slip+")
+    return float(np.ptp(df["T_clutch [N m]"].to_numpy()[w]))
+
+
+@pytest.mark.parametrize("kind", ["reduced", "full"])
+def test_judder_open_loop_the_clutch_torque_swings(kind: str) -> None:
+    """Nothing damps the slip mode on the falling mu(slip): with the same pedal the clutch
+    torque swings many times more than on the flat characteristic."""
+    _, _, res, m = _run("judder", None, kind)
+    _, _, flat, _ = _run("paper-start", None, kind)
+    assert _swing(res) > 5.0 * _swing(flat)
+    assert m["lockup_time_s"] is not None  # the pedal still closes the clutch
+
+
+def test_heavy_load_open_loop_pulls_the_engine_below_idle_without_stalling() -> None:
+    _, _, res, m = _run("heavy-load", None)
+    _, _, _, m_closed = _run("heavy-load")
+    assert not m["engine_stalled"] and np.min(_col(res, "omega_engine")) > 0.0
+    assert m["engine_speed_min_rpm"] < 700.0
+    assert m_closed["engine_speed_min_rpm"] > 899.0  # law (6) holds it at idle and above
+    assert m["lockup_time_s"] is not None
+
+
+def test_tip_out_open_loop_drags_the_engine_down() -> None:
+    """The driver keeps releasing the clutch pedal during the tip-out: the clutch pulls the
+    engine far below idle, where law (6) keeps it above 800 rpm."""
+    _, _, res, _ = _run("tip-out-reengage", None)
+    _, _, res_c, _ = _run("tip-out-reengage")
+    lifted = (res.t > 1.0) & (res.t < 1.6)
+    assert np.min(_col(res, "omega_engine")[lifted]) < rpm_to_rad_s(600.0)
+    lifted_c = (res_c.t > 1.0) & (res_c.t < 1.6)
+    assert np.min(_col(res_c, "omega_engine")[lifted_c]) > rpm_to_rad_s(800.0)

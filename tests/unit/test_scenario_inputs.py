@@ -113,11 +113,68 @@ def test_negative_reference_is_rejected() -> None:
         dataclasses.replace(SC, reference=constant(0.0) + step(0.5, -1600.0 * np.pi / 30.0))
 
 
-def test_pedal_in_a_closed_loop_scenario_file_is_an_error() -> None:
+def test_a_file_with_a_controller_and_a_pedal_has_both_loops() -> None:
     d = SC.to_dict()
-    d["inputs"]["pedal"] = {"times": [0.0], "values": [0.1]}
-    with pytest.raises(ScenarioError, match=r"inputs.pedal: the pedal is driven by the controller"):
+    d["inputs"]["pedal"] = {"times": [0.7, 2.0], "values": [0.1, 0.03]}
+    sc = scenario_from_dict(d)
+    assert sc.loops == ("closed", "open") and sc.loop == "closed" and sc.needs_controller
+    # its own loop is closed: the pedal signal is not an input the simulator sees
+    assert set(sc.input_signals()) == {"throttle", "brake"}
+    assert sc.start_time == 0.5  # controller.start_s
+    op = sc.for_loop("open")
+    assert op.loops == ("open",) and op.loop == "open" and not op.needs_controller
+    assert op.reference is None and op.control_start is None
+    assert set(op.input_signals()) == {"throttle", "pedal", "brake"}
+    assert op.input_signals()["pedal"](1.35) == pytest.approx(0.065, rel=1e-12)
+    assert op.start_time == 0.7  # the first pedal knot
+    cl = sc.for_loop("closed")
+    assert cl.loops == ("closed",) and "pedal" not in dict(cl.inputs)
+    assert cl.reference == sc.reference and cl.control_start == 0.5
+    assert sc.for_loop(None) == cl
+    # round trip through the TOML form keeps both parts
+    again = scenario_from_dict(sc.to_dict())
+    assert again == sc
+
+
+def test_loop_choice_errors_name_the_field_and_value() -> None:
+    with pytest.raises(ScenarioError, match=r"loop = 'half': must be one of \('closed', 'open'\)"):
+        SC.for_loop("half")
+    with pytest.raises(ScenarioError, match=r"loop = 1"):
+        SC.for_loop(1)  # type: ignore[arg-type]
+    engage = load_scenario("engage-ramp", params=P)
+    assert engage.loops == ("open",) and engage.for_loop("open") is engage
+    with pytest.raises(
+        ScenarioError, match=r"loop = 'closed': scenario 'engage-ramp' has no \[controller\] table"
+    ):
+        engage.for_loop("closed")
+    closed_only = dataclasses.replace(
+        SC, inputs=tuple((n, s) for n, s in SC.inputs if n != "pedal")
+    )
+    assert closed_only.loops == ("closed",)
+    with pytest.raises(
+        ScenarioError, match=r"loop = 'open': scenario 'paper-start' has no \[inputs.pedal\]"
+    ):
+        closed_only.for_loop("open")
+    # an open-loop-only scenario still needs its pedal
+    d = engage.to_dict()
+    del d["inputs"]["pedal"]
+    with pytest.raises(ScenarioError, match=r"inputs.pedal: missing"):
         scenario_from_dict(d)
+
+
+def test_run_scenario_loop_choice() -> None:
+    dt = SC.drivetrain(P, kind="reduced")
+    with pytest.raises(ScenarioError, match=r"needs a controller.*loop='open'"):
+        run_scenario(SC, dt)
+    with pytest.raises(ScenarioError, match=r"loop = 'open'.*takes no controller.*'paper'"):
+        run_scenario(SC, dt, controller="paper", loop="open", t_end=0.01)
+    with pytest.raises(ScenarioError, match=r"loop = 'sideways'"):
+        run_scenario(SC, dt, loop="sideways", t_end=0.01)
+    engage = load_scenario("engage-ramp", params=P)
+    with pytest.raises(ScenarioError, match=r"loop = 'closed'.*no \[controller\]"):
+        run_scenario(
+            engage, engage.drivetrain(P, kind="reduced"), controller="paper", loop="closed"
+        )
 
 
 def test_start_time_is_not_before_the_run() -> None:
