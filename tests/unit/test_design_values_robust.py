@@ -1,0 +1,60 @@
+"""Value tests of design/robust.py (issue 22 item 4: mutation score of the design modules): the
+feasibility tolerance of a given start against a slack computed by hand, and the grid refinement
+around the active cells against the module docstring's rule (cells split in four, log-equal)."""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+import pytest
+
+from drivetrain_ctrl.design.plants import Plant
+from drivetrain_ctrl.design.robust import InfeasibleSpecError, robust_pi
+
+s = control.tf("s")
+
+
+@pytest.mark.parametrize(("excess", "verdict"), [(1.5e-7, "does not meet"), (0.5e-7, "stabilise")])
+def test_a_given_start_is_checked_to_the_feasibility_tolerance(excess: float, verdict: str) -> None:
+    """P = -1 (static), start kp = 0.5 (1 + e), ki = 1e-12: L = -kp - ki/(j w), so |1 + L| =
+    0.5 (1 - e) up to 1e-12 at every frequency, and the relative slack of |S| <= 2, (|1 + L| -
+    1/2) / (1/2), is -e. The start is rejected for e = 1.5e-7 (beyond the documented 1e-7
+    tolerance); for e = 0.5e-7 it passes that check and fails the next one: the closed loop's
+    pole ki / (1 - kp) > 0 is unstable."""
+    with pytest.raises(InfeasibleSpecError, match=verdict):
+        robust_pi(
+            control.tf([-1.0], [1.0]),
+            start=(0.5 * (1.0 + excess), 1e-12),
+            omega=tuple(np.logspace(0, 1, 20)),
+            ms=2.0,
+        )
+
+
+def test_the_grid_is_refined_around_the_active_cells() -> None:
+    """One refinement round (the default): the design grid keeps every given point and splits
+    a run of cells, the one where the Nyquist curve comes closest to -1 and its neighbours
+    included, into four log-equal parts (three new points per cell); the message gives the new
+    size. refine=0 keeps the grid."""
+    w0 = np.logspace(-2, 2, 40)
+    plant = Plant(1 / (s + 1), 0.5)
+    r = robust_pi(plant, ms=1.4, omega=tuple(w0))
+    assert np.all(np.isin(w0, r.omega))
+    added = np.setdiff1d(r.omega, w0)
+    assert added.size > 0
+    cells, counts = np.unique(np.searchsorted(w0, added) - 1, return_counts=True)
+    assert np.all(counts == 3)
+    assert np.all(np.diff(cells) == 1) and cells.size >= 3  # one run of near cells, dilated
+    for k in cells:
+        lw = np.log(w0[k]) + (np.log(w0[k + 1]) - np.log(w0[k])) * np.array([0.25, 0.5, 0.75])
+        got = added[(added > w0[k]) & (added < w0[k + 1])]
+        assert got == pytest.approx(np.exp(lw), rel=1e-12)
+    # the closest approach to -1 of the final loop (python-control, exact delay, dense grid)
+    wd = np.logspace(-2, 2, 20001)
+    mag, ph, _ = control.frequency_response(r.controller * plant.sys, wd)
+    L = mag * np.exp(1j * ph) * np.exp(-0.5j * wd)
+    k_min = int(np.searchsorted(w0, wd[int(np.argmin(np.abs(1 + L)))])) - 1
+    assert {k_min - 1, k_min, k_min + 1} <= set(cells.tolist())
+    assert r.message.endswith(f"grid refined around the active cells to {r.omega.size} points")
+    assert r.omega.size == w0.size + 3 * cells.size
+    r0 = robust_pi(plant, ms=1.4, omega=tuple(w0), refine=0)
+    assert np.array_equal(r0.omega, w0) and "refined" not in r0.message
