@@ -254,6 +254,23 @@ def test_defaults_and_conversions_of_a_parsed_study() -> None:
     assert s.metrics == ("jerk_max_m_s3", "lockup_time_s")  # repeats dropped, order kept
 
 
+def test_the_defaults_of_a_study_built_in_python() -> None:
+    from drivetrain_ctrl.plant.params import DEFAULT_SET
+
+    s = Study(
+        name="py",
+        parameters=(),
+        method="mc",
+        samples=2,
+        seed=0,
+        controllers=("paper",),
+        scenarios=("paper-start",),
+    )
+    assert (s.model, s.params, s.metrics, s.criteria) == ("reduced", DEFAULT_SET, (), ())
+    assert (s.t_end, s.rtol, s.description, s.linear) == (None, None, "", True)
+    assert s.case(0, {}, "paper", 0).linear is True
+
+
 @pytest.mark.parametrize(
     ("path", "value", "named"),
     [
