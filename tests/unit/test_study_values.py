@@ -418,6 +418,20 @@ def test_latin_hypercube_and_sobol_samples_are_scipys() -> None:
     assert not np.allclose(df["vehicle.M_v"].to_numpy(), 1100.0 + 400.0 * plain[:, 0])
 
 
+def test_a_single_parameter_is_drawn_like_several() -> None:
+    one = {"vehicle.M_v": TWO["vehicle.M_v"]}
+    for method in ("mc", "lhs", "sobol"):
+        df = sample_table(_study(method, 8, 2, one))
+        if method == "mc":
+            u = np.random.default_rng(2).random((8, 1))
+        elif method == "lhs":
+            u = qmc.LatinHypercube(d=1, seed=2).random(8)
+        else:
+            u = qmc.Sobol(d=1, scramble=True, seed=2).random(8)
+        assert df["vehicle.M_v"].to_numpy() == pytest.approx(1100.0 + 400.0 * u[:, 0], rel=1e-14)
+        assert df["vehicle.M_v"].nunique() == 8
+
+
 def test_a_study_without_parameters_has_empty_sample_rows() -> None:
     for method in ("mc", "lhs", "sobol"):
         df = sample_table(_study(method, 4, 1, {}))
