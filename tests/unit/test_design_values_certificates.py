@@ -112,3 +112,14 @@ def test_a_discrete_system_with_unspecified_period_is_not_judged_continuous() ->
         assert "dt" in str(exc)
         return
     assert cert.feasible and cert.dt != 0.0
+
+
+def test_the_clutch_certificate_bisects_to_one_per_mille_by_default() -> None:
+    """The default tolerance of the bisections (the signatures, shown in the API reference):
+    rtol = 1e-3 (relative) for the clutch's certificate as for common_lyapunov."""
+    import inspect
+
+    from drivetrain_ctrl.design.certificates import clutch_sector_certificate
+
+    for f in (clutch_sector_certificate, common_lyapunov):
+        assert inspect.signature(f).parameters["rtol"].default == 1e-3
