@@ -638,3 +638,59 @@ def test_a_study_that_cannot_be_rebuilt_is_analysed_from_its_table(
     assert data["worst"]["rows"][0]["resimulated"] == {
         "error": "not re-simulated: the study rebuilt from study.json differs from it"
     }
+
+
+# -- re-simulated worst runs ----------------------------------------------------------------------
+
+
+def _one_run_folder(out: Path, lockup: float, jerk: float) -> Path:
+    d = {
+        "study": {"name": "r", "controllers": ["paper"], "scenarios": ["paper-start"],
+                  "metrics": ["lockup_time_s", "jerk_max_m_s3"],
+                  "criteria": ["lockup_time_s <= 2.5"], "linear": False},
+        "sampling": {"method": "mc", "samples": 1, "seed": 1},
+        "parameters": {"vehicle.M_v": {"values": [1300.0]}},
+    }  # fmt: skip
+    study = Study.from_dict(d)
+    _prepare_folder(study, out)
+    vals = {"vehicle.M_v": 1300.0}
+    rec = {"status": "ok", "lockup_time_s": lockup, "jerk_max_m_s3": jerk}
+    item = (study.case(0, vals, "paper", 0).label, 0, "paper", "paper-start", vals)
+    _write_chunk(out / "results", [_row(item, rec, study.metrics, study.criteria)], _schema(study))
+    return out
+
+
+def test_a_worst_run_is_re_simulated_and_compared_to_its_row(tmp_path: Path) -> None:
+    from drivetrain_ctrl.studies.case import simulate_case
+
+    d = Study.from_dict(
+        {
+            "study": {"name": "r", "controllers": ["paper"], "scenarios": ["paper-start"]},
+            "sampling": {"method": "mc", "samples": 1, "seed": 1},
+        }
+    )
+    run = simulate_case(d.case(0, {"vehicle.M_v": 1300.0}, "paper", 0))
+    lock, jerk = float(run.metrics["lockup_time_s"]), float(run.metrics["jerk_max_m_s3"])
+    assert lock > 2.5  # the run misses the criterion: a worst run
+    # the table's lock-up time off by 0.5e-6 and by 1.5e-6 (relative): the re-simulation
+    # reproduces a row to 1e-6
+    for rel, same in ((0.5e-6, True), (1.5e-6, False)):
+        out = _one_run_folder(tmp_path / f"r{rel}", lock * (1.0 + rel), jerk)
+        row = analyse_study(out, worst=1).data["worst"]["rows"][0]
+        r = row["resimulated"]
+        assert r["error"] is None and r["reproduces_table"] is same
+        assert r["metrics"] == {"lockup_time_s": pytest.approx(lock, rel=1e-8)}
+        assert row["missed"] == ["lockup_time_s <= 2.5"]
+        assert row["score"] == pytest.approx((lock * (1 + rel) - 2.5) / 2.5, rel=1e-8)
+    # the traces at 100 Hz from the run's own samples
+    res = run.result
+    tr = row["trace"]
+    t = np.arange(float(res.t[0]), float(res.t[-1]) + 1e-12, 0.01)
+    assert tr["t_s"] == pytest.approx(t.tolist(), abs=1e-12)
+    rpm = 60.0 / (2.0 * math.pi)
+    for key, state in (("omega_engine_rpm", "omega_engine"), ("omega_driven_rpm", "omega_primary")):
+        want = np.interp(t, np.asarray(res.t), np.asarray(res.state(state))) * rpm
+        assert tr[key] == pytest.approx(want.tolist(), rel=1e-8, abs=1e-9)
+    assert tr["omega_ref_rpm"] == pytest.approx([run.scenario.reference(x) * rpm for x in t], rel=1e-8)  # fmt: skip
+    assert tr["driven_state"] == "omega_primary"
+    assert len(tr["clutch_torque_Nm"]) == len(tr["vehicle_accel_m_s2"]) == t.size
