@@ -104,6 +104,7 @@ from typing import Any
 import control
 import numpy as np
 import scipy.signal
+from numpy.typing import NDArray
 
 from ..core.registry import builtin_files, load_builtin_or_toml, load_toml_as, read_toml
 from ..core.signals import Signal
@@ -521,10 +522,7 @@ class ControllerSpec:
         key = _stability_key(self, params)
         hit = None if key is None else _STABILITY_CACHE.get(key)
         if hit is None:
-            L = slip_loop(self, params)
-            disc = bool(L.isdtime(strict=True))
-            ps = tuple(complex(p) for p in np.atleast_1d(control.poles(control.feedback(L, 1))))
-            hit = (disc, ps)
+            hit = _slip_loop_poles(self, params)
             if key is not None:
                 _STABILITY_CACHE[key] = hit
                 while len(_STABILITY_CACHE) > STABILITY_CACHE_SIZE:
@@ -716,6 +714,57 @@ def _stability_key(spec: ControllerSpec, params: DrivetrainParams) -> Any:
     except TypeError:
         return None
     return key
+
+
+def _slip_loop_poles(
+    spec: ControllerSpec, params: DrivetrainParams
+) -> tuple[bool, tuple[complex, ...]]:
+    """``(sampled, closed-loop poles)`` of :func:`slip_loop` in negative feedback (the poles of
+    ``feedback(L, 1)``). A continuous loop's characteristic polynomial ``den_L + num_L`` is
+    formed from the polynomials of :func:`slip_loop` (the products python-control forms) with
+    numpy, without building transfer-function objects (a study checks every sample's loop)."""
+    if spec.sample_period_s is not None:
+        L = slip_loop(spec, params)
+        ps = tuple(complex(p) for p in np.atleast_1d(control.poles(control.feedback(L, 1))))
+        return True, ps
+    num_p, den_p = _slip_plant_polys(spec, params)
+    num_c, den_c = _controller_polys(spec)
+    num = np.polymul(num_p, num_c)
+    den = np.polymul(den_p, den_c)
+    return False, tuple(complex(p) for p in np.atleast_1d(np.roots(np.polyadd(den, num))))
+
+
+def _slip_plant_polys(
+    spec: ControllerSpec, params: DrivetrainParams
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Numerator and denominator of :func:`slip_loop`'s plant ``|k13'(x_r0)| A(s)/(J_1 s + b_1)``
+    (:func:`law6_loop_closed_form` with unit gain)."""
+    slope = abs(clutch_friction(params).capacity_slope(spec.offset_x_r0, side="right"))
+    act = params.actuator
+    return _law6_loop_polys(
+        k_r=1.0,
+        dk13_dxc=slope,
+        mu=1.0,
+        J1=params.engine.J1,
+        b1_eff=params.engine.b1,
+        actuator=Actuator(act.omega_a, act.delta_a),
+    )
+
+
+def _controller_polys(spec: ControllerSpec) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Numerator and denominator of ``control.tf(spec.lti())``, kept per (hashable) spec."""
+    try:
+        return _controller_polys_cached(spec)
+    except TypeError:  # an unhashable spec
+        return _controller_polys_of(spec)
+
+
+def _controller_polys_of(spec: ControllerSpec) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    C = control.tf(spec.lti())
+    return np.asarray(C.num[0][0], dtype=float), np.asarray(C.den[0][0], dtype=float)
+
+
+_controller_polys_cached = functools.lru_cache(maxsize=64)(_controller_polys_of)
 
 
 def slip_loop(spec: ControllerSpec, params: DrivetrainParams) -> control.TransferFunction:
@@ -990,8 +1039,21 @@ def law6_loop_closed_form(
     ``L(s) = k_r |k13'(x_c)| mu A(s) / (J_1 s + b_1')`` (units: k_r [m s/rad], k13' [N m/m],
     J_1 [kg m^2], b_1' [N m s/rad]; L dimensionless). TypeError if ``actuator`` is not an
     :class:`~drivetrain_ctrl.control.blocks.Actuator`."""
+    num, den = _law6_loop_polys(
+        k_r=k_r, dk13_dxc=dk13_dxc, mu=mu, J1=J1, b1_eff=b1_eff, actuator=actuator
+    )
+    return control.tf(num, den)
+
+
+def _law6_loop_polys(
+    *, k_r: float, dk13_dxc: float, mu: float, J1: float, b1_eff: float, actuator: Actuator
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Numerator and denominator of :func:`law6_loop_closed_form` (the same checks)."""
     if not isinstance(actuator, Actuator):
         raise TypeError(f"actuator: an Actuator is needed, got {type(actuator).__name__}")
     kr, j1 = positive_float("k_r", k_r), positive_float("J1", J1)
     g = kr * abs(finite_float("dk13_dxc", dk13_dxc)) * finite_float("mu", mu)
-    return control.tf([g], [j1, finite_float("b1_eff", b1_eff)]) * actuator_tf(actuator)
+    act = actuator_tf(actuator)
+    num = np.polymul([g], act.num[0][0])
+    den = np.polymul([j1, finite_float("b1_eff", b1_eff)], act.den[0][0])
+    return num, den

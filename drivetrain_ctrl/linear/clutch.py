@@ -15,7 +15,16 @@ from .. import kernels as K
 from ..control.blocks import Controller, actuator_tf, require_controller
 from ..core.serialize import json_ready
 from ..core.validate import finite_float, is_finite_real, positive_float
-from .linearisation import ShuffleMode, _oscillatory, _siso, _tf_min, linearisation_parts, linearise
+from .linearisation import (
+    ShuffleMode,
+    _linear_arrays,
+    _oscillatory,
+    _siso,
+    _tf_min,
+    _trim_tf_arrays,
+    linearisation_parts,
+    linearise,
+)
 from .operating_point import OperatingPoint, StuckMargin, require_op
 
 
@@ -187,11 +196,12 @@ def clutch_loop(
     one = control.tf([1.0], [1.0], Ts) if disc else control.tf([1.0], [1.0])
     S = control.minreal(one / (one + Lt), verbose=False)
     T = control.minreal(Lt / (one + Lt), verbose=False)
-    Pt = _tf_min(P_use)
+    P_sys = _as_ss(P_use, Ts)
+    Pt = _tf_min(P_sys)
     Ct = control.tf(C)
     PS = control.minreal(Pt * S, verbose=False)
     CS = control.minreal(Ct * S, verbose=False)
-    cl = control.feedback(L_ss, 1)
+    cl = control.feedback(_as_ss(L_ss, Ts), 1)
     return ClutchLoop(
         op=op,
         controller_name=controller.name,
@@ -201,7 +211,7 @@ def clutch_loop(
         tau13_to_omega1=_clutch_torque_to_engine_speed(es),
         theta_to_omega1=_throttle_to_engine_speed(es),
         x_c_to_accel=pedal_to_vehicle_accel(op, mu_slope=mu_slope),
-        plant=P_use,
+        plant=P_sys,
         controller=C,
         L=Lt,
         S=S,
@@ -225,47 +235,114 @@ def clutch_loop_gain(
     return es, Lt
 
 
+#: a state-space system as numpy arrays ``(A, B, C, D)``
+Arrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+
+
+def _arrays(sys: control.StateSpace) -> Arrays:
+    """``(A, B, C, D)`` of a python-control state space, as float arrays."""
+    return (
+        np.asarray(sys.A, dtype=float),
+        np.asarray(sys.B, dtype=float),
+        np.asarray(sys.C, dtype=float),
+        np.asarray(sys.D, dtype=float),
+    )
+
+
+def _as_ss(sys: Arrays | control.StateSpace, dt: float | None) -> control.StateSpace:
+    if isinstance(sys, control.StateSpace):
+        return sys
+    return control.ss(*sys, dt) if dt else control.ss(*sys)
+
+
+def _series(first: Arrays, second: Arrays) -> Arrays:
+    """``second`` after ``first`` (python-control's ``second * first``, the same state order:
+    ``first``'s states, then ``second``'s)."""
+    A1, B1, C1, D1 = first
+    A2, B2, C2, D2 = second
+    n1, n2 = A1.shape[0], A2.shape[0]
+    A = np.block([[A1, np.zeros((n1, n2))], [B2 @ C1, A2]])
+    return A, np.vstack([B1, B2 @ D1]), np.hstack([D2 @ C1, C2]), D2 @ D1
+
+
 def _loop_parts(
     op: OperatingPoint, controller: Controller, *, mu_slope: float | None, what: str
-) -> tuple[EngineSide, Any, control.StateSpace, control.TransferFunction]:
+) -> tuple[EngineSide, Arrays | control.StateSpace, Arrays | control.StateSpace, Any]:
     """(engine side, plant seen by the controller, ``L`` as state space, ``L`` minimal transfer
-    function) of :func:`clutch_loop`."""
+    function) of :func:`clutch_loop`. A continuous loop's plant and ``L`` are numpy arrays
+    ``(A, B, C, D)`` (built without python-control's interconnections; :func:`_as_ss` makes
+    systems of them), a sampled loop's python-control systems."""
     _require_slip(op, what)
     require_controller(controller, what)
     if controller.output != "pedal":
         raise ValueError(f"controller.output = {controller.output!r}: must drive 'pedal'")
     es = engine_side(op, mu_slope=mu_slope)
+    A, B, C, D, _names, outs = _linear_arrays(op, inputs=("x_c",), outputs=None, mu_slope=mu_slope)
+    Cm, Dm = _measurement_rows_of(C, D, outs, controller)
+    if all(src == "ref" for _coef, src in controller.measurement):
+        raise ValueError("controller.measurement: has no plant state (only 'ref')")
+    P: Arrays = _series(_error_chain_arrays(controller, op), (A, B, Cm, Dm))
+    Cl = controller.lti
+    if not controller.is_discrete:
+        L_ss = _series(P, _arrays(Cl))
+        return es, P, L_ss, _tf_min_arrays(*L_ss, None)
+    # a sampled loop: python-control's realisation of the plant (the ZOH and the conversion to
+    # a transfer function are ill-conditioned for it: another realisation moves its figures
+    # beyond round-off)
     sys = linearise(op, inputs=("throttle", "x_c"), mu_slope=mu_slope)
     meas = None
     for coef, src in controller.measurement:
-        if src == "ref":
-            continue
-        if src not in sys.output_labels:
-            raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
-        Pk = _siso(sys, "x_c", src) * float(coef)
-        meas = Pk if meas is None else meas + Pk
-    if meas is None:
-        raise ValueError("controller.measurement: has no plant state (only 'ref')")
-    P = control.ss(meas * _error_chain(controller, op))
-    C = controller.lti
-    disc = controller.is_discrete
-    if disc:
-        Ts = float(C.dt)
-        Pd = control.sample_system(P, Ts, method="zoh")
-        if controller.delay_samples:
-            zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
-            Pd = control.ss(Pd * control.ss(zd))
-        P_use = Pd
-    else:
-        Ts = None
-        P_use = P
-    L_ss = control.ss(C * P_use)
-    return es, P_use, L_ss, _tf_min(L_ss)
+        if src != "ref":
+            Pk = _siso(sys, "x_c", src) * float(coef)
+            meas = Pk if meas is None else meas + Pk
+    Ts = float(Cl.dt)
+    Pd = control.sample_system(control.ss(meas * _error_chain(controller, op)), Ts, method="zoh")
+    if controller.delay_samples:
+        zd = control.tf([1.0], [1.0] + [0.0] * controller.delay_samples, Ts)
+        Pd = control.ss(Pd * control.ss(zd))
+    L_sys = control.ss(Cl * Pd)
+    return es, Pd, L_sys, _tf_min(L_sys)
+
+
+def _tf_min_arrays(
+    A: NDArray[np.float64],
+    B: NDArray[np.float64],
+    C: NDArray[np.float64],
+    D: NDArray[np.float64],
+    dt: float | None,
+) -> control.TransferFunction:
+    """:func:`_tf_min` of the SISO system ``(A, B, C, D)`` (no python-control system built)."""
+    return control.minreal(_trim_tf_arrays(A, B, C, D, dt), verbose=False)
+
+
+def _error_chain_arrays(controller: Controller, op: OperatingPoint) -> Arrays:
+    """Controller output -> x_c as numpy arrays: ``-sgn`` (the sign block; the minus sign turns
+    the loop into negative feedback), rate limiter (linear range, ``g/(s+g)``) and actuator
+    (``w_a^2/(s^2 + 2 d_a w_a s + w_a^2)`` as ``x1' = -2 d_a w_a x1 - w_a x2 + w_a u``,
+    ``x2' = w_a x1``, ``x_c = x2``: every entry of the order of ``w_a``, a well-scaled matrix)."""
+    sgn = _controller_sign(controller, op)
+    e = np.zeros((0, 0))
+    chain: Arrays = (e, np.zeros((0, 1)), np.zeros((1, 0)), np.array([[-sgn]]))
+    if controller.rate_limit is not None:
+        g = float(controller.rate_limit[1])
+        rate = (np.array([[-g]]), np.array([[g]]), np.array([[1.0]]), np.zeros((1, 1)))
+        chain = _series(chain, rate)
+    if controller.actuator is not None:
+        w, d = float(controller.actuator.omega), float(controller.actuator.delta)
+        act = (
+            np.array([[-2.0 * d * w, -w], [w, 0.0]]),
+            np.array([[w], [0.0]]),
+            np.array([[0.0, 1.0]]),
+            np.zeros((1, 1)),
+        )
+        chain = _series(chain, act)
+    return chain
 
 
 def _error_chain(controller: Controller, op: OperatingPoint) -> control.StateSpace:
-    """Controller output -> x_c: ``-sgn`` (the sign block; the minus sign turns the loop into
-    negative feedback), rate limiter (linear range) and actuator."""
+    """The transfer function of :func:`_error_chain_arrays` in python-control's realisation
+    (its conversions of the rate limiter's and the actuator's transfer functions), for the
+    sampled loop (:func:`_loop_parts`)."""
     sgn = _controller_sign(controller, op)
     chain = control.ss([], [], [], [[-sgn]])
     if controller.rate_limit is not None:
@@ -292,16 +369,26 @@ def _measurement_rows(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``(Cm, Dm)``: the output row and feedthrough of x_c -> the measured part of the
     controller's error, from the plant ``sys`` (input ``x_c``)."""
-    Cm = np.zeros((1, sys.nstates))
+    return _measurement_rows_of(
+        np.asarray(sys.C), np.asarray(sys.D), list(sys.output_labels), controller
+    )
+
+
+def _measurement_rows_of(
+    C: NDArray[np.float64], D: NDArray[np.float64], outputs: list[str], controller: Controller
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_measurement_rows` from the plant's output matrices ``C``, ``D`` (input ``x_c``)
+    and its output names."""
+    Cm = np.zeros((1, C.shape[1]))
     Dm = np.zeros((1, 1))
     for coef, src in controller.measurement:
         if src == "ref":
             continue
-        if src not in sys.output_labels:
+        if src not in outputs:
             raise ValueError(f"controller.measurement: {src!r} is not a body speed of the model")
-        o = list(sys.output_labels).index(src)
-        Cm += coef * sys.C[[o], :]
-        Dm += coef * sys.D[[o], :]
+        o = outputs.index(src)
+        Cm += coef * C[[o], :]
+        Dm += coef * D[[o], :]
     return Cm, Dm
 
 
@@ -316,14 +403,14 @@ def _negative_feedback_matrix(
     B: NDArray[np.float64],
     Cm: NDArray[np.float64],
     Dm: NDArray[np.float64],
-    K: control.StateSpace,
+    K: control.StateSpace | Arrays,
 ) -> NDArray[np.float64]:
     """State matrix of the SISO plant ``(A, B, Cm, Dm)`` (x_c -> measured error) closed by the
     SISO controller-and-error-chain ``K`` in negative feedback, ``x_c = -K y`` (as
     :func:`_slip_mode_matrix`; states: the plant's, then ``K``'s). With ``y = Cm x + Dm x_c`` and
     ``x_c = -(Ck xk + Dk y)``: ``x_c = -(Dk Cm x + Ck xk)/(1 + Dk Dm)``."""
-    Ak, Bk = np.asarray(K.A, dtype=float), np.asarray(K.B, dtype=float)
-    Ck, Dk = np.asarray(K.C, dtype=float), float(np.asarray(K.D, dtype=float)[0, 0])
+    Ak, Bk, Ck, Dk_ = _arrays(K) if isinstance(K, control.StateSpace) else K
+    Dk = float(Dk_[0, 0])
     dm = float(Dm[0, 0])
     den = 1.0 + Dk * dm
     if den == 0.0:
@@ -705,6 +792,21 @@ def _sampled_loop_poles(
     return np.asarray(np.linalg.eigvals(cl.A), dtype=complex)
 
 
+def _slip_plant_arrays(
+    op: OperatingPoint, mu: float
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    list[str],
+    list[str],
+]:
+    """The plant at ``op`` with input ``x_c`` and the friction slope ``mu`` [s/rad], as the
+    arrays of :func:`linearise` (``A, B, C, D``, state and output names)."""
+    return _linear_arrays(op, inputs=("x_c",), outputs=None, mu_slope=mu)
+
+
 #: relative tolerance of the check that the slip mode's state matrix is affine in mu'
 #: (:func:`_affine_slip_matrix`)
 JUDDER_AFFINE_RTOL: float = 1e-9
@@ -714,8 +816,9 @@ def _affine_slip_matrix(
     op: OperatingPoint, controller: Controller | None, limit: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     """``(A0, dA)`` with the slip mode's state matrix (:func:`_slip_mode_matrix`, continuous)
-    ``A(mu') = A0 + mu' dA`` over ``[-limit, 0]``, from three linearisations (mu' = 0, ``-limit``
-    and their geometric middle as the check); None when the check fails (the matrix is not
+    ``A(mu') = A0 + mu' dA`` over ``[-limit, 0]``, from the plant at three slopes (mu' = 0,
+    ``-limit`` and their geometric middle as the check; one Jacobian evaluation, which
+    :func:`linearisation_parts` keeps, and a rank-one change per slope); None when the check fails (the matrix is not
     affine in mu' to :data:`JUDDER_AFFINE_RTOL`, or its shape changes), and the caller
     re-linearises at every mu'. The friction slope enters the Jacobian only through the clutch
     torque's derivative by the slip speed, ``k13 mu'`` times the slip direction, so the matrix
@@ -723,18 +826,18 @@ def _affine_slip_matrix(
 
     K = None
     if controller is not None:
-        K = control.ss(controller.lti) * _error_chain(controller, op)  # independent of mu'
-        if K.ninputs != 1 or K.noutputs != 1:
+        # the controller after the error chain, independent of mu'
+        K = _series(_error_chain_arrays(controller, op), _arrays(controller.lti))
+        if K[1].shape[1] != 1 or K[2].shape[0] != 1:
             return None
 
     def mat(mu: float) -> NDArray[np.float64]:
-        sys = linearise(op, inputs=("x_c",), mu_slope=mu)
-        A = np.asarray(sys.A, dtype=float)
+        A, B, C, D, _names, outs = _slip_plant_arrays(op, mu)
         if K is None:
             return A
         assert controller is not None
-        Cm, Dm = _measurement_rows(sys, controller)
-        return _negative_feedback_matrix(A, np.asarray(sys.B, dtype=float), Cm, Dm, K)
+        Cm, Dm = _measurement_rows_of(C, D, outs, controller)
+        return _negative_feedback_matrix(A, B, Cm, Dm, K)
 
     A0, A1 = mat(0.0), mat(-limit)
     mid = -math.sqrt(JUDDER_FIRST_STEP * limit)
@@ -769,7 +872,7 @@ def judder_crossing(
     ``JUDDER_BOUNDARY_TOL`` of the boundary counts as unstable. An unstable window narrower than
     one grid step before the first unstable grid value would be missed. For a continuous loop
     (or the plant alone) the state matrix is affine in mu' (:func:`_affine_slip_matrix`, checked
-    at a third slope): three linearisations, then one eigenvalue problem per evaluation; a sampled
+    at a third slope): the plant at three slopes, then one eigenvalue problem per evaluation; a sampled
     loop, or a matrix that fails the check, is re-linearised at every evaluation.
 
     No threshold (``mu_slope_crit`` None, with ``reason``): the slip mode is not stable at mu' = 0,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -63,8 +64,66 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
 
     ``mu_slope`` [s/rad] overrides ``d(mu/mu0)/d|w|`` of the clutch at the operating point (the
     level ``mu(|w|)`` is kept): the clutch torque gets the slope ``c = k13(x_c) mu_slope``. Only
-    meaningful while the clutch slips (ignored otherwise).
+    meaningful while the clutch slips (ignored otherwise). The Jacobians at ``op`` are computed
+    once and kept for the last few operating points (an operating point is immutable); a slope
+    override is a rank-one change of them (the slope enters only through the clutch torque's
+    derivative by the slip speed).
     """
+    base = _base_parts(op)
+    if mu_slope is None or base.P is None:
+        return base.parts
+    p = base.parts
+    n = base.P.shape[0]
+    i, ratio, g = base.i, base.ratio, base.g
+    c_new = p.capacity * finite_float("mu_slope", mu_slope)
+    dc = c_new - p.mu_slope_torque
+    clutch_dx = p.clutch_dx + dc * g
+    # torque -dc g^T on body i, +ratio dc g^T on body i+1
+    dtau = np.zeros((n, g.shape[0]))
+    dtau[i] -= dc * g
+    dtau[i + 1] += ratio * dc * g
+    A = np.array(p.A)
+    A[:n] += base.P @ dtau
+    return dataclasses.replace(
+        p,
+        A=_frozen(A),
+        dtau_dx=_frozen(p.dtau_dx + dtau),
+        clutch_dx=_frozen(clutch_dx),
+        mu_slope_torque=float(c_new),
+    )
+
+
+@dataclass(frozen=True)
+class _BaseParts:
+    """:func:`linearisation_parts` at an operating point without a slope override, and what an
+    override needs: the mode's matrix ``P`` (None unless the clutch slips), the clutch's coupling
+    ``i``, its ``ratio`` and the slip-speed row ``g``."""
+
+    parts: LinearisationParts
+    P: F64 | None
+    i: int
+    ratio: float
+    g: F64
+
+
+#: operating points whose Jacobians are kept (least recently used dropped first)
+_PARTS_CACHE_SIZE = 8
+_PARTS: dict[int, tuple[OperatingPoint, _BaseParts]] = {}
+
+
+def _base_parts(op: OperatingPoint) -> _BaseParts:
+    hit = _PARTS.pop(id(op), None)
+    if hit is not None and hit[0] is op:
+        _PARTS[id(op)] = hit
+        return hit[1]
+    base = _compute_base_parts(op)
+    _PARTS[id(op)] = (op, base)  # op is held: its id is not reused while kept
+    while len(_PARTS) > _PARTS_CACHE_SIZE:
+        del _PARTS[next(iter(_PARTS))]
+    return base
+
+
+def _compute_base_parts(op: OperatingPoint) -> _BaseParts:
     m, x, u, mode = op.model, np.asarray(op.x), np.asarray(op.u), op.mode
     n = m.n_bodies
     D = m.data
@@ -92,24 +151,15 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
     g = np.zeros(m.nx)
     g[i] = 1.0
     g[i + 1] = -ratio
+    P = None
     if code in (K.SLIP_POS, K.SLIP_NEG):
         sign = 1 if code == K.SLIP_POS else -1
         clutch_dx = -(dtau_dx[i] - dtau2_dx[i])
         clutch_du = -(dtau_du[i] - dtau2_du[i])
         c = float(clutch_dx[i])
-        if mu_slope is not None:
-            c_new = cap * finite_float("mu_slope", mu_slope)
-            dc = c_new - c
-            clutch_dx = clutch_dx + dc * g
-            # torque -dc g^T on body i, +ratio dc g^T on body i+1
-            dtau = np.zeros((n, m.nx))
-            dtau[i] -= dc * g
-            dtau[i + 1] += ratio * dc * g
-            dtau_dx = dtau_dx + dtau
-            P, _ = K.mode_matrices(D, np.array(mode.fm, dtype=np.int64))
-            A[:n] += P @ dtau
-            c = c_new
         gain = float(clutch_du[m.input_names.index("pedal")])
+        P, _ = K.mode_matrices(D, np.array(mode.fm, dtype=np.int64))
+        P = _frozen(P)
     elif code == K.STUCK:
         _, Lam = K.mode_matrices(D, np.array(mode.fm, dtype=np.int64))
         # the least-norm part of the stuck-torque matrix (its last nf columns span the
@@ -120,7 +170,7 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
         clutch_dx = np.zeros(m.nx)
         clutch_du = np.zeros(len(m.input_names))
     ie = m.chain.body_index("engine")
-    return LinearisationParts(
+    parts = LinearisationParts(
         A=_frozen(A),
         B=_frozen(B),
         dtau_dx=_frozen(dtau_dx),
@@ -135,6 +185,7 @@ def linearisation_parts(op: OperatingPoint, *, mu_slope: float | None = None) ->
         mu=mu,
         sign=sign,
     )
+    return _BaseParts(parts=parts, P=P, i=i, ratio=ratio, g=_frozen(g))
 
 
 def linearise(
@@ -177,15 +228,49 @@ def linearise(
     for nm in inputs:
         if nm not in alias_inv:
             raise ValueError(f"inputs: {nm!r} unknown; choose from {sorted(alias_inv)}")
+    n = m.n_bodies
+    avail = list(m.state_names[:n]) + ["tau_13", "C_1", "a_vehicle"]
+    for o in avail if outputs is None else outputs:
+        if o not in avail:
+            raise ValueError(f"outputs: {o!r} unknown; choose from {avail}")
+    A, B, C, Df, names, outs = _linear_arrays(
+        op,
+        inputs=inputs,
+        outputs=outputs,
+        mu_slope=mu_slope,
+        keep_positions=keep_positions,
+        reduce=reduce,
+    )
+    return control.ss(
+        A,
+        B,
+        C,
+        Df,
+        states=names,
+        inputs=list(inputs),
+        outputs=outs,
+        name=f"{op.kind} {op.clutch_mode}",
+    )
+
+
+def _linear_arrays(
+    op: OperatingPoint,
+    *,
+    inputs: Sequence[str],
+    outputs: Sequence[str] | None,
+    mu_slope: float | None = None,
+    keep_positions: bool = False,
+    reduce: bool = True,
+) -> tuple[F64, F64, F64, F64, list[str], list[str]]:
+    """``(A, B, C, D, state names, output names)`` of :func:`linearise` (its arguments already
+    checked), as numpy arrays: for callers that need the matrices, not a python-control system."""
+    m = op.model
+    alias_inv = {v: k for k, v in INPUT_ALIASES.items() if k in m.input_names}
     parts = linearisation_parts(op, mu_slope=mu_slope)
     n = m.n_bodies
     uidx = [m.input_names.index(alias_inv[nm]) for nm in inputs]
     body_names = list(m.state_names[:n])
-    avail = body_names + ["tau_13", "C_1", "a_vehicle"]
-    outs = list(avail if outputs is None else outputs)
-    for o in outs:
-        if o not in avail:
-            raise ValueError(f"outputs: {o!r} unknown; choose from {avail}")
+    outs = list(body_names + ["tau_13", "C_1", "a_vehicle"] if outputs is None else outputs)
     iv = m.state_index("v_vehicle") if "v_vehicle" in m.state_names else -1
     rows_x = []
     rows_u = []
@@ -219,16 +304,7 @@ def linearise(
     else:
         A, B, C = Af, Bf, Cf
         names = list(m.state_names)
-    return control.ss(
-        A,
-        B,
-        C,
-        Df,
-        states=names,
-        inputs=list(inputs),
-        outputs=outs,
-        name=f"{op.kind} {op.clutch_mode}",
-    )
+    return A, B, C, Df, names, outs
 
 
 def ss_to_tf(sys: control.StateSpace) -> control.TransferFunction:
@@ -236,20 +312,32 @@ def ss_to_tf(sys: control.StateSpace) -> control.TransferFunction:
     names and sample time kept. With slycot installed python-control converts through slycot's
     ``tb04ad``, which on the 11-state clutch loop loses digits (a denominator coefficient 6000
     came out as 5999.998); scipy's characteristic-polynomial route keeps them."""
-    A = np.asarray(sys.A, dtype=float)
-    B = np.asarray(sys.B, dtype=float)
-    C = np.asarray(sys.C, dtype=float)
-    D = np.asarray(sys.D, dtype=float)
-    nums: list[list[Any]] = [[None] * sys.ninputs for _ in range(sys.noutputs)]
-    dens: list[list[Any]] = [[None] * sys.ninputs for _ in range(sys.noutputs)]
-    for j in range(sys.ninputs):
-        num, den = scipy.signal.ss2tf(A, B, C, D, input=j)
-        for i in range(sys.noutputs):
-            nums[i][j] = np.trim_zeros(np.atleast_1d(num[i]), "f") if np.any(num[i]) else [0.0]
-            dens[i][j] = den
+    nums, dens = _ss_to_tf_lists(*_ss_arrays(sys))
     return control.tf(
         nums, dens, sys.dt, inputs=sys.input_labels, outputs=sys.output_labels, name=sys.name
     )
+
+
+def _ss_arrays(sys: control.StateSpace) -> tuple[F64, F64, F64, F64]:
+    return (
+        np.asarray(sys.A, dtype=float),
+        np.asarray(sys.B, dtype=float),
+        np.asarray(sys.C, dtype=float),
+        np.asarray(sys.D, dtype=float),
+    )
+
+
+def _ss_to_tf_lists(A: F64, B: F64, C: F64, D: F64) -> tuple[list[list[Any]], list[list[Any]]]:
+    """Numerators and denominators (lists by output, then input) of :func:`ss_to_tf`."""
+    nu, ny = B.shape[1], C.shape[0]
+    nums: list[list[Any]] = [[None] * nu for _ in range(ny)]
+    dens: list[list[Any]] = [[None] * nu for _ in range(ny)]
+    for j in range(nu):
+        num, den = scipy.signal.ss2tf(A, B, C, D, input=j)
+        for i in range(ny):
+            nums[i][j] = np.trim_zeros(np.atleast_1d(num[i]), "f") if np.any(num[i]) else [0.0]
+            dens[i][j] = den
+    return nums, dens
 
 
 def trim_tf(sys: Any) -> control.TransferFunction:
@@ -268,19 +356,29 @@ def trim_tf(sys: Any) -> control.TransferFunction:
     installed or not."""
     if not isinstance(sys, control.StateSpace) or sys.nstates == 0:
         return control.tf(sys)
-    tf = ss_to_tf(sys)
-    A = np.asarray(sys.A, dtype=float)
-    B = np.asarray(sys.B, dtype=float)
-    C = np.asarray(sys.C, dtype=float)
-    D = np.asarray(sys.D, dtype=float)
+    return _trim_tf_arrays(
+        *_ss_arrays(sys),
+        sys.dt,
+        inputs=sys.input_labels,
+        outputs=sys.output_labels,
+        name=sys.name,
+    )
+
+
+def _trim_tf_arrays(
+    A: F64, B: F64, C: F64, D: F64, dt: Any, **names: Any
+) -> control.TransferFunction:
+    """:func:`trim_tf` of the system ``(A, B, C, D)`` (at least one state) with sample time
+    ``dt`` (None or 0: continuous) and python-control's naming keywords ``names``."""
+    tnums, tdens = _ss_to_tf_lists(A, B, C, D)
     nums = []
-    for i in range(tf.noutputs):
+    for i in range(len(tnums)):
         row = []
-        for j in range(tf.ninputs):
-            num = np.atleast_1d(np.asarray(tf.num[i][j], dtype=float))
+        for j in range(len(tnums[i])):
+            num = np.atleast_1d(np.asarray(tnums[i][j], dtype=float))
             big = float(np.max(np.abs(num))) if num.size else 0.0
             # num[k] is the coefficient behind Markov parameter k + off (0: D, 1: C B, ...)
-            off = len(tf.den[i][j]) - num.size
+            off = len(tdens[i][j]) - num.size
             v, va = B[:, j].copy(), np.abs(B[:, j])
             for _ in range(max(off - 1, 0)):
                 v, va = A @ v, np.abs(A) @ va
@@ -298,11 +396,9 @@ def trim_tf(sys: Any) -> control.TransferFunction:
                 k += 1
             row.append(num[k:])
         nums.append(row)
-    dens = [[np.asarray(tf.den[i][j], dtype=float) for j in range(tf.ninputs)]
-            for i in range(tf.noutputs)]  # fmt: skip
-    return control.tf(
-        nums, dens, tf.dt, inputs=tf.input_labels, outputs=tf.output_labels, name=tf.name
-    )
+    dens = [[np.asarray(tdens[i][j], dtype=float) for j in range(len(tdens[i]))]
+            for i in range(len(tdens))]  # fmt: skip
+    return control.tf(nums, dens, dt if dt else 0, **names)
 
 
 def _tf_min(sys: Any) -> control.TransferFunction:

@@ -743,7 +743,28 @@ class _Reduction:
     Nsel: F64  # (n, r) omega = Nsel omega[speed_rows]
 
 
+#: reductions kept (least recently used dropped first): a study row linearises one mode of one
+#: model several times (the loop gain, the judder search)
+_REDUCTION_CACHE_SIZE = 16
+_REDUCTIONS: dict[tuple[int, tuple[int, ...], bool], tuple[Model, _Reduction]] = {}
+
+
 def _reduction(model: Model, mode: Mode, *, keep_positions: bool) -> _Reduction:
+    """The mode's independent coordinates (module docstring; read-only arrays). It depends only
+    on the (immutable) model and the friction modes, so it is kept for the last few of them."""
+    key = (id(model), mode.fm, bool(keep_positions))
+    hit = _REDUCTIONS.pop(key, None)
+    if hit is not None and hit[0] is model:
+        _REDUCTIONS[key] = hit
+        return hit[1]
+    red = _reduction_of(model, mode, keep_positions=keep_positions)
+    _REDUCTIONS[key] = (model, red)  # the model is held: its id is not reused while kept
+    while len(_REDUCTIONS) > _REDUCTION_CACHE_SIZE:
+        del _REDUCTIONS[next(iter(_REDUCTIONS))]
+    return red
+
+
+def _reduction_of(model: Model, mode: Mode, *, keep_positions: bool) -> _Reduction:
     n = model.n_bodies
     N = model.speed_basis(mode)
     r = N.shape[1]
@@ -788,12 +809,12 @@ def _reduction(model: Model, mode: Mode, *, keep_positions: bool) -> _Reduction:
         S[r + k, j] = 1.0
     idx = rows + others
     return _Reduction(
-        T,
-        S,
+        _frozen(T),
+        _frozen(S),
         tuple(model.state_names[i] for i in idx),
         tuple(model.state_units[i] for i in idx),
         tuple(rows),
-        Nsel,
+        _frozen(Nsel),
     )
 
 

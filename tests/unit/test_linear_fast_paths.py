@@ -118,15 +118,13 @@ def test_a_matrix_not_affine_in_the_slope_falls_back(monkeypatch) -> None:
     search then re-linearises at every slope)."""
     op = _slip("reduced")
     ctrl = _controllers("reduced")[1]
-    real = LC.linearise
+    real = LC._slip_plant_arrays
 
-    def bent(op_, *, inputs, mu_slope=None):
-        sys = real(op_, inputs=inputs, mu_slope=mu_slope)
-        mu = 0.0 if mu_slope is None else float(mu_slope)
-        return control.ss(sys.A + mu * mu * np.eye(sys.nstates), sys.B, sys.C, sys.D,
-                          inputs=sys.input_labels, outputs=sys.output_labels)  # fmt: skip
+    def bent(op_, mu):
+        A, B, C, D, names, outs = real(op_, mu)
+        return A + mu * mu * np.eye(A.shape[0]), B, C, D, names, outs
 
-    monkeypatch.setattr(LC, "linearise", bent)
+    monkeypatch.setattr(LC, "_slip_plant_arrays", bent)
     assert LC._affine_slip_matrix(op, ctrl, 1.0) is None
 
 
@@ -150,13 +148,13 @@ def test_clutch_loop_gain_is_clutch_loops_L(kind) -> None:
 def test_stability_check_is_cached_on_what_it_reads(monkeypatch) -> None:
     laws._STABILITY_CACHE.clear()
     calls = []
-    real = laws.slip_loop
+    real = laws._slip_loop_poles
 
     def counted(spec, params):
         calls.append(spec.name)
         return real(spec, params)
 
-    monkeypatch.setattr(laws, "slip_loop", counted)
+    monkeypatch.setattr(laws, "_slip_loop_poles", counted)
     spec = load_controller("pi")
     first = spec.check_stability(P)
     again = spec.check_stability(P)
