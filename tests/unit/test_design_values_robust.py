@@ -58,3 +58,67 @@ def test_the_grid_is_refined_around_the_active_cells() -> None:
     assert r.omega.size == w0.size + 3 * cells.size
     r0 = robust_pi(plant, ms=1.4, omega=tuple(w0), refine=0)
     assert np.array_equal(r0.omega, w0) and "refined" not in r0.message
+
+
+W0 = tuple(np.logspace(-2, 2, 40))
+
+
+def _ks_peak(C: object, plant: Plant) -> float:
+    """max |C / (1 + C P)| with the exact delay (python-control responses, dense grid)."""
+    w = np.logspace(-3, 3, 20001)
+    mc, pc, _ = control.frequency_response(C, w)
+    mp, pp, _ = control.frequency_response(plant.sys, w)
+    Cw = mc * np.exp(1j * pc)
+    L = Cw * mp * np.exp(1j * pp) * np.exp(-1j * w * plant.delay)
+    return float(np.max(np.abs(Cw / (1 + L))))
+
+
+def test_the_effort_bound_has_the_same_optimum_with_and_without_the_working_set() -> None:
+    """exp(-0.5 s)/(s + 1), Ms <= 1.4, |KS| <= 1.1 (binding: without it max |KS| = 1.21): the
+    full problem (working_set=False, its cone rows built once) and the working-set one reach
+    the same gains; the bound holds on a dense grid computed here."""
+    plant = Plant(1 / (s + 1), 0.5)
+    free = robust_pi(plant, ms=1.4, omega=W0)
+    assert _ks_peak(free.controller, plant) > 1.2
+    a = robust_pi(plant, ms=1.4, ks_max=1.1, omega=W0, working_set=True)
+    b = robust_pi(plant, ms=1.4, ks_max=1.1, omega=W0, working_set=False)
+    assert (b.kp, b.ki) == pytest.approx((a.kp, a.ki), rel=1e-6)
+    assert a.ki < free.ki
+    for r in (a, b):
+        peak = _ks_peak(r.controller, plant)
+        assert peak <= 1.1 * (1 + 1e-6) and peak > 1.09
+        assert any(name == "ks" for p in r.plants for name, _w, _s in p.active)
+        assert "|KS| <= 1.1" in r.summary()
+
+
+def test_timings_are_parts_of_the_wall_time() -> None:
+    """Each phase's time [s] is >= 0 and at most the design's wall-clock time; the solver's
+    time is part of the iterations'."""
+    r = robust_pi(Plant(1 / (s + 1), 0.5), ms=1.4, mt=1.3, omega=W0)
+    t = dict(r.timings)
+    assert set(t) == {"grid", "start", "iterations", "solver", "check"}
+    assert all(0.0 <= v <= r.wall_time_s for v in t.values())
+    assert r.solve_time_s == t["solver"] <= t["iterations"]
+    assert "Ms <= 1.4, Mt <= 1.3:" in r.summary()
+    assert "Mt <=" not in robust_pi(Plant(1 / (s + 1), 0.5), ms=1.4, omega=W0).summary()
+
+
+def test_a_tuning_compares_equal_whatever_its_grid_array() -> None:
+    """omega is left out of the comparison (an array has no single truth value): a copy of the
+    result with an equal, separate grid array is equal to it."""
+    import dataclasses
+
+    r = robust_pi(Plant(1 / (s + 1), 0.5), ms=1.4, omega=W0)
+    assert dataclasses.replace(r, omega=r.omega.copy()) == r
+
+
+def test_spec_lower_bounds_are_as_documented() -> None:
+    """ks_max > 0 (0.5 accepted, 0 refused); check_points >= 10 (10 accepted, 9 refused)."""
+    from drivetrain_ctrl.design.robust import RobustSpec
+
+    assert RobustSpec(ks_max=0.5).ks_max == 0.5
+    assert RobustSpec(check_points=10).check_points == 10
+    with pytest.raises(ValueError, match=r"ks_max = 0.0: must be > 0"):
+        RobustSpec(ks_max=0.0)
+    with pytest.raises(ValueError, match=r"check_points = 9: must be an integer >= 10"):
+        RobustSpec(check_points=9)
