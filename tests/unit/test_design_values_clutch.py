@@ -41,3 +41,21 @@ def test_one_trajectory_instant_is_the_middle_of_the_slip_phase() -> None:
     assert t1 == pytest.approx(0.5 * (t2[0] + t2[1]), rel=1e-12)
     with pytest.raises(ValueError, match=r"times = 0: must be >= 1"):
         clutch_plant_set(times=0)
+
+
+def test_latin_hypercube_takes_each_explicit_value_once_per_stratum() -> None:
+    """A Latin hypercube of n samples has one sample in each of the n strata [k/n, (k+1)/n) of
+    every dimension: with n equal to the number of explicit values each value is taken exactly
+    once; an interval dimension gets one value in each n-th of [lo, hi]."""
+    from drivetrain_ctrl.design.clutch import _box_points, _Dim
+
+    vals = (1.0, 2.0, 3.0, 4.0)
+    dims = [_Dim("a", vals, True), _Dim("b", (10.0, 20.0), False)]
+    pts = _box_points(dims, 4, 7, include_nominal=False)
+    assert [label for label, _ in pts] == ["sample 0", "sample 1", "sample 2", "sample 3"]
+    assert sorted(v["a"] for _, v in pts) == list(vals)
+    b = sorted(v["b"] for _, v in pts)
+    assert [int((x - 10.0) / 2.5) for x in b] == [0, 1, 2, 3]
+    # with the nominal point first (no values: the base car's)
+    with_nominal = _box_points(dims, 4, 7, include_nominal=True)
+    assert len(with_nominal) == 5 and with_nominal[1:] == pts
