@@ -696,7 +696,7 @@ def _cmd_params_list(args: argparse.Namespace) -> int:
 
 def _cmd_scenarios_list(args: argparse.Namespace) -> int:
     for name, sc in builtin_scenarios().items():
-        print(f"{name} (gear {sc.gear}, t_end {sc.t_end:g} s)")
+        print(f"{name} (gear {sc.gear}, t_end {sc.t_end:g} s, loop: {', '.join(sc.loops)})")
         for line in textwrap.wrap(sc.description, 92):
             print(f"    {line}")
     print("(or give --scenario FILE.toml; format: drivetrain_ctrl.scenarios module docstring)")
@@ -774,6 +774,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
             workers=args.workers,
             progress=not args.no_progress,
             warn=lambda m: print(f"{PROG}: {m}", file=sys.stderr),
+            open_loop=not args.no_open_loop,
         )
     except CompareError as exc:
         raise InputError(f"compare: {_msg(exc)}") from None
@@ -953,6 +954,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--workers", type=_positive_int, default=None, help="worker processes (default: cores)"
     )
     cp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    cp.add_argument(
+        "--no-open-loop",
+        action="store_true",
+        help="leave out the open-loop baseline (each scenario's driver's pedal, no controller)",
+    )
     cp.add_argument(
         "--out", required=True, type=_out_dir, help="output directory (created if needed)"
     )

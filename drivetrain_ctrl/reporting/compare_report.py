@@ -4,10 +4,11 @@ Renders the ``data`` of :func:`~drivetrain_ctrl.studies.compare.compare` (nothin
 here): the Bode overlay of L and S of every controller at its nominal slip point (the slip mode;
 in lock mode the clutch loop is open and has no Bode diagram, which the page says), one figure of
 time responses per scenario (engine and primary-shaft speed, pedal, clutch torque, vehicle
-acceleration, with the engine-speed reference; every controller in each, named in the legend),
+acceleration, with the engine-speed reference; every controller in each, named in the legend,
+and the open-loop baseline, a driver's pedal, in black),
 and the tables: verdict (with the reasoning), linear figures (nominal and per scenario; the
 worst case and nominal figures over the design's plant set, recomputed, beside the recorded
-ones; the certified friction-slope sector), switching-plant metrics with pass/fail, linear
+ones; the certified friction-slope sector), switching-plant metrics with pass/fail (the open-loop baseline's rows beside), linear
 against nonlinear, and what was left out. The page, the PDF's blocks and ``data.json`` are
 written by :mod:`drivetrain_ctrl.reporting.document`, as for the other reports.
 
@@ -87,6 +88,9 @@ _DESIGN: tuple[tuple[str, str], ...] = (
 
 Table = tuple[str, list[list[str]]]
 
+#: the name of the open-loop baseline in the figures' legends and the tables
+BASELINE = "open loop (driver's pedal)"
+
 
 def _fmt(v: Any) -> str:
     if v is None:
@@ -152,6 +156,13 @@ def compare_figures(data: Mapping[str, Any]) -> dict[str, Any]:
                 ax.plot(t, ser[key], color=_color(i), lw=1.1, label=c)
             axes[0].plot(t, ser["omega_primary_rpm"], color=_color(i), lw=0.9, ls="--")
             ref = ser.get("omega_ref_rpm")
+        base = (data.get("open_loop") or {}).get(s) or {}
+        bser = base.get("series")
+        if bser:
+            tb = bser["t_s"]
+            for ax, (key, _) in zip(axes, _ROWS, strict=True):
+                ax.plot(tb, bser[key], color="k", lw=1.0, ls="-.", label=BASELINE)
+            axes[0].plot(tb, bser["omega_primary_rpm"], color="0.5", lw=0.8, ls="--")
         if ref is not None:  # the scenario's, the same for every controller
             axes[0].plot(t, ref, color="k", lw=0.9, ls=":", label="reference")
         for ax, (_, label) in zip(axes, _ROWS, strict=True):
@@ -179,6 +190,11 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
     ]
     for s in scens:
         paras.append(f"{s}: {inp['scenario_descriptions'][s]}")
+    if inp.get("open_loop"):
+        paras.append(
+            f"Baseline, {BASELINE}: {dfn.get('open_loop')}. In the time responses in black "
+            "(dash-dotted), in the metrics table below the controllers."
+        )
     tables: list[Table] = []
     if data["invalid"]:
         rows = [["kind", "name", "left out because"]]
@@ -359,12 +375,24 @@ def compare_sections(data: Mapping[str, Any]) -> list[Section]:
                 + [_fmt(m.get(k)) for k in _METRIC_COLUMNS]
                 + ["n/a" if cr.get(k) is None else ("pass" if cr[k] else "FAIL") for k in crit]
             )
+    baseline = data.get("open_loop") or {}
+    for s in scens:
+        rec = baseline.get(s)
+        if rec is None:
+            continue
+        m = rec.get("metrics") or {}
+        cr = rec.get("criteria") or {}
+        rows.append(
+            [BASELINE, s, rec.get("status") or "-"]
+            + [_fmt(m.get(k)) for k in _METRIC_COLUMNS]
+            + ["n/a" if cr.get(k) is None else ("pass" if cr[k] else "FAIL") for k in crit]
+        )
     errs = [
         f"{c} on {s}: {data['runs'][c][s]['error']}"
         for c in ctrls
         for s in scens
         if data["runs"][c][s].get("error")
-    ]
+    ] + [f"{BASELINE} on {s}: {r['error']}" for s, r in baseline.items() if r.get("error")]
     out.append(
         (
             "Switching plant",

@@ -42,7 +42,7 @@ from ..control.laws import ControllerError, ControllerSpec, builtin_controllers,
 from ..core.serialize import json_ready
 from ..core.validate import did_you_mean, is_finite_real, reject_unknown
 from ..linear.clutch import EngineSide, _judder_threshold, clutch_loop_gain, judder_crossing
-from ..linear.margins import _auto_grid, loop_margins
+from ..linear.margins import LoopMargins, _auto_grid, loop_margins
 from ..linear.operating_point import OperatingPoint, slip_point_after_start
 from ..plant.drivetrain import Drivetrain
 from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
@@ -60,6 +60,7 @@ __all__ = [
     "SCENARIO_FIELDS",
     "clear_caches",
     "linear_figures",
+    "linear_figures_at",
     "simulate_case",
     "run_case",
 ]
@@ -414,22 +415,44 @@ def linear_figures(
     start) on ``drivetrain`` (the case's parameters and model). Gain and phase margins and the
     crossover: :func:`~drivetrain_ctrl.linear.margins.loop_margins` (python-control's
     ``stability_margins``); the disk margin and Ms on :data:`LINEAR_GRID_POINTS` frequencies.
-    Judder margin ``1 - mu'/mu'_crit`` with ``mu'`` the slope of the friction ratio mu/mu0 at the
-    slip point and ``mu'_crit`` < 0 the judder threshold (:func:`_judder`): 1 for a constant
-    friction coefficient, 0 at the threshold, negative beyond it, above 1 for rising friction.
+    The figures from these: :func:`linear_figures_at`.
     """
     out: dict[str, Any] = dict.fromkeys(LINEAR_FIGURES)
     if controller is None:
         out["linear_note"] = "open loop: no clutch loop"
         return out
+    op: OperatingPoint | None = None
     try:
         op = slip_point_after_start(result, drivetrain, start)
-        out["lin:t_s"] = op.t
         es, L = clutch_loop_gain(op, controller)
         m = loop_margins(L, omega=_auto_grid(L, n=LINEAR_GRID_POINTS).tolist())
     except Exception as exc:  # noqa: BLE001 - the run's own figures stand; the reason is kept
-        out["linear_note"] = f"no linear figures: {type(exc).__name__}: {exc}"
+        out["lin:t_s"] = None if op is None else op.t
+        out["linear_note"] = f"{NO_LINEAR_FIGURES}: {type(exc).__name__}: {exc}"
         return out
+    return linear_figures_at(op, controller, es, L, m)
+
+
+#: the start of ``linear_note`` when the slip loop could not be analysed
+NO_LINEAR_FIGURES = "no linear figures"
+
+
+def linear_figures_at(
+    op: OperatingPoint, controller: Controller, engine: EngineSide, L: Any, margins: LoopMargins
+) -> dict[str, Any]:
+    """:data:`LINEAR_FIGURES` and ``linear_note`` of a slip loop already analysed: ``op`` its
+    operating point, ``engine`` and ``L`` its engine side and loop gain
+    (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop_gain`, or a
+    :func:`~drivetrain_ctrl.linear.clutch.clutch_loop`'s ``engine`` and ``L``), ``margins`` its
+    :func:`~drivetrain_ctrl.linear.margins.loop_margins` (on whatever grid the caller chose:
+    the disk margin and Ms are taken on it). Only the judder threshold is computed here.
+    Judder margin ``1 - mu'/mu'_crit`` with ``mu'`` the slope of the friction ratio mu/mu0 at the
+    slip point and ``mu'_crit`` < 0 the judder threshold (:func:`_judder`): 1 for a constant
+    friction coefficient, 0 at the threshold, negative beyond it, above 1 for rising friction.
+    """
+    out: dict[str, Any] = dict.fromkeys(LINEAR_FIGURES)
+    m, es = margins, engine
+    out["lin:t_s"] = op.t
     out["lin:gain_margin"] = None if m.gain_margin_db is None else 10.0 ** (m.gain_margin_db / 20)
     out["lin:phase_margin_deg"] = m.phase_margin_deg
     out["lin:disk_margin"] = m.disk_margin
@@ -445,7 +468,7 @@ def linear_figures(
     out["lin:mu_slope"] = mu
     try:
         crit, how = _judder(op, controller, es, L)
-    except Exception as exc:  # noqa: BLE001 - as above
+    except Exception as exc:  # noqa: BLE001 - the run's own figures stand; the reason is kept
         crit, how = None, f"judder: failed ({type(exc).__name__}: {exc})"
     notes.append(how)
     out["lin:mu_slope_crit"] = crit

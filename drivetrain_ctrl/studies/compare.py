@@ -1,6 +1,6 @@
 """Comparing controller variants side by side: the linear loop and the switching plant together.
 
-:func:`compare` runs every controller on every (closed-loop) scenario as a
+:func:`compare` runs every controller on every scenario (in closed loop) as a
 :class:`~drivetrain_ctrl.studies.case.Case` on Dask (the studies' machinery: a local cluster of
 worker processes, or a given client; every worker loads the kernels once) and returns a
 :class:`Comparison` whose ``data`` (a JSON-ready dict; the same input gives the same bytes: no
@@ -20,12 +20,14 @@ Per controller and scenario (one worker task each):
   pedal (actuator position x_c), clutch torque and vehicle acceleration;
 * the linear figures of the clutch slip loop at the scenario's slip operating point
   (:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`: the run
-  :data:`~drivetrain_ctrl.linear.operating_point.SLIP_DELAY_S` after the controller start):
-  gain, phase and disk margins, Ms, crossover, closed-loop stability and the judder margin as a
-  study row has them (:func:`~drivetrain_ctrl.studies.case.linear_figures`, the one function
-  for them), and the delay margin, Mt, bandwidth and closed-loop poles
-  (:func:`~drivetrain_ctrl.linear.margins.loop_margins` of
-  :func:`~drivetrain_ctrl.linear.clutch.clutch_loop` at the same point). In lock mode the clutch loop is open
+  :data:`~drivetrain_ctrl.linear.operating_point.SLIP_DELAY_S` after the controller start),
+  from one analysis: the loop (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop`) and its
+  :func:`~drivetrain_ctrl.linear.margins.loop_margins` on that function's automatic grid give
+  the gain, phase, delay and disk margins, Ms, Mt, crossover, bandwidth, closed-loop poles and
+  stability; the judder margin of the same loop as a study row finds it
+  (:func:`~drivetrain_ctrl.studies.case.linear_figures_at`). A study row takes Ms and the disk
+  margin on a coarser grid (:data:`~drivetrain_ctrl.studies.case.LINEAR_GRID_POINTS`
+  frequencies), so they may differ from the comparison's in the last digits. In lock mode the clutch loop is open
   (x_c does not change the transmitted torque of a stuck clutch): no margins, said so; at the
   lock point (the run :data:`LOCK_DELAY_S` after lock-up) the locked driveline's shuffle modes
   and the clutch's torque margin to breakaway
@@ -40,6 +42,11 @@ Per controller and scenario (one worker task each):
   sign: law (6)'s sign block switches branch), *saturation* (the pedal reaches a stroke limit)
   and *operating-point drift* (the slip speed moves by more than :data:`DRIFT_THRESHOLD` of its
   value within :data:`DRIFT_WINDOW_S` after the slip point: the slip point is no equilibrium).
+
+Per scenario, the **open-loop baseline** (``open_loop=True``, the default): the scenario run
+without a controller, its pedal signal (``[inputs.pedal]``: the pedal a driver would give, each
+built-in start has one) driving the clutch; the same metrics, criteria and time responses, shown
+beside the controllers and never ranked: what a controller buys over a driver's pedal.
 
 Per controller: the nominal linear figures are those on :data:`NOMINAL_SCENARIO` (run in
 addition when it is not among the scenarios) with the Bode data of L and S on
@@ -99,7 +106,7 @@ from ..plant.params import DEFAULT_SET, DrivetrainParams, load_params
 from ..scenarios.scenario import Scenario, builtin_scenarios, load_scenario
 from ..sim.metrics import state_accelerations
 from ..sim.simulator import ZenoError
-from .case import MODELS, Case, CaseError, linear_figures, simulate_case
+from .case import MODELS, NO_LINEAR_FIGURES, Case, CaseError, linear_figures_at, simulate_case
 
 __all__ = [
     "BODE_GRID_RAD_S",
@@ -225,10 +232,14 @@ def _series(run: Any, t_end: float, n: int) -> dict[str, Any]:
     right, _ = state_accelerations(s)
     ic = [c.name for c in model.chain.couplings].index("clutch")
     ip = model.input_names.index("pedal")
-    ref = run.scenario.reference  # a closed-loop scenario has one (Scenario checks it)
+    ref = run.scenario.reference  # the closed loop has one (Scenario checks it); open: None
     cols = {
         "t_s": s.t,
-        "omega_ref_rpm": np.asarray(ref(s.t), dtype=float) * RAD_S_TO_RPM,
+        **(
+            {"omega_ref_rpm": np.asarray(ref(s.t), dtype=float) * RAD_S_TO_RPM}
+            if ref is not None
+            else {}
+        ),
         "omega_engine_rpm": s.state("omega_engine") * RAD_S_TO_RPM,
         "omega_primary_rpm": s.state("omega_primary") * RAD_S_TO_RPM,
         "pedal_mm": np.asarray(s.u)[:, ip] * 1e3,
@@ -299,7 +310,15 @@ def _certificate(op: Any, controller: Any) -> tuple[dict[str, Any], float]:
 def _linear(run: Any, bode: bool, certificate: bool = False) -> dict[str, Any]:
     """The slip loop at the run's slip point: margins (and the Bode data of L and S, and with
     ``certificate`` the certified sector, :func:`_certificate`); lock mode at the lock point
-    (:func:`_lock`)."""
+    (:func:`_lock`).
+
+    One analysis of the slip loop: the slip point
+    (:func:`~drivetrain_ctrl.linear.operating_point.slip_point_after_start`), the loop
+    (:func:`~drivetrain_ctrl.linear.clutch.clutch_loop`) and its margins
+    (:func:`~drivetrain_ctrl.linear.margins.loop_margins`, on its automatic grid: every
+    frequency-domain figure, Ms, Mt, the disk margin and the bandwidth, on that one grid), once
+    each; the judder figures from the same loop (:func:`~drivetrain_ctrl.studies.case.linear_figures_at`,
+    the function a study row's figures come from)."""
     lock, lock_reason = _lock(run)
     out: dict[str, Any] = {
         "slip": None,
@@ -307,33 +326,19 @@ def _linear(run: Any, bode: bool, certificate: bool = False) -> dict[str, Any]:
         "lock": lock,
         "lock_reason": lock_reason,
     }
-    from ..design.checks import disk_figures  # the design package loads cvxpy: only here
-
-    # the figures a study row has: the one function (studies.case.linear_figures)
-    fig = linear_figures(run.result, run.drivetrain, run.controller, start=run.scenario.start_time)
-    if fig.get("lin:t_s") is None or fig.get("lin:stable") is None:
-        out["slip_reason"] = fig.get("linear_note") or "no slip loop"
+    if run.controller is None:
+        out["slip_reason"] = "open loop: no clutch loop"
         return out
     try:
         op = slip_point_after_start(run.result, run.drivetrain, run.scenario.start_time)
         cl = clutch_loop(op, run.controller)
-        lm = loop_margins(cl.L).to_dict()
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        out["slip_reason"] = f"no slip loop: {exc}"
+        m = loop_margins(cl.L)
+    except Exception as exc:  # noqa: BLE001 - the run's own figures stand; the reason is kept
+        out["slip_reason"] = f"{NO_LINEAR_FIGURES}: {type(exc).__name__}: {exc}"
         return out
+    fig = linear_figures_at(op, run.controller, cl.engine, cl.L, m)
+    lm = m.to_dict()
     slip = {k: lm.get(k) for k in _MARGIN_KEYS}
-    gm = fig["lin:gain_margin"]
-    alpha = fig["lin:disk_margin"]
-    slip.update(
-        gain_margin_db=None if gm is None or not gm > 0 else 20.0 * math.log10(gm),
-        phase_margin_deg=fig["lin:phase_margin_deg"],
-        disk_margin=alpha,
-        ms=fig["lin:Ms"],
-        crossover_rad_s=fig["lin:crossover_rad_s"],
-        stable=bool(fig["lin:stable"]),
-    )
-    if alpha is not None:
-        slip["disk_margin_db"], slip["disk_margin_deg"] = disk_figures(alpha)
     slip["judder"] = {
         k.removeprefix("lin:"): fig.get(k)
         for k in ("lin:mu_slope", "lin:mu_slope_crit", "lin:judder_margin")
@@ -438,7 +443,7 @@ def _observed(run: Any, t_op: float | None) -> dict[str, Any]:
 
 
 def compare_case(
-    controller: ControllerSpec,
+    controller: ControllerSpec | None,
     scenario: Scenario,
     params: DrivetrainParams,
     model: str,
@@ -451,15 +456,38 @@ def compare_case(
     """One controller on one scenario (runs on a worker; picklable arguments): the case's
     metrics, time responses, slip-loop figures (with ``bode`` its Bode data, with
     ``certificate`` its certified sector) and what the run did after the slip point; ``status``
-    ``failed`` with ``error`` when the case cannot run (nothing raised)."""
-    out: dict[str, Any] = {"controller": controller.name, "scenario": scenario.name}
-    case = Case(scenario=scenario, params=params, model=model, controller=controller, t_end=t_end)
+    ``failed`` with ``error`` when the case cannot run (nothing raised). ``controller`` None:
+    the scenario's open loop (its pedal signal, the baseline): metrics and time responses only
+    (there is no clutch loop)."""
+    loop = "closed" if controller is not None else "open"
+    out: dict[str, Any] = {
+        "controller": controller.name if controller is not None else None,
+        "scenario": scenario.name,
+        "loop": loop,
+    }
+    case = Case(
+        scenario=scenario,
+        params=params,
+        model=model,
+        loop=loop,
+        controller=controller,
+        t_end=t_end,
+    )
     try:
         run = simulate_case(case)
     except (CaseError, ZenoError, RuntimeError) as exc:
         out.update(status="failed", error=f"{type(exc).__name__}: {exc}")
         return out
     horizon = float(t_end if t_end is not None else scenario.t_end)
+    if controller is None:
+        out.update(
+            status=str(run.metrics.get("status")),
+            error=None,
+            horizon_s=horizon,
+            metrics=run.metrics,
+            series=_series(run, horizon, n_series),
+        )
+        return out
     lin = _linear(run, bode, certificate)
     t_op = lin["slip"]["operating_point"]["t_s"] if lin["slip"] is not None else None
     out.update(
@@ -829,6 +857,7 @@ def compare(
     warn: Callable[[str], None] | None = None,
     design_checks: bool = True,
     certificate: bool = True,
+    open_loop: bool = True,
 ) -> Comparison:
     """Compare ``controllers`` (built-in names or controller TOML files; a list or
     comma-separated) on ``scenarios`` (``"all"``: every built-in closed-loop scenario; or names /
@@ -842,7 +871,10 @@ def compare(
     ``design_checks``: check every controller over its design plant set (module docstring; a
     few seconds per controller, in parallel with the runs). ``certificate``: the certified
     sector of each nominal slip loop (about a second per controller, on the nominal run's
-    worker).
+    worker). ``open_loop``: also run each scenario's open loop (its driver's pedal, no
+    controller: one short run per scenario) as the baseline the controllers are measured
+    against: its metrics, criteria and time responses in ``data["open_loop"]``, drawn and
+    tabled beside the controllers, never ranked (a scenario without a pedal signal says so).
     Returns a :class:`Comparison`; raises :class:`CompareError` for invalid options or when no
     controller (or no scenario) is valid."""
     tic = time.perf_counter()
@@ -860,7 +892,11 @@ def compare(
     check_cluster_options(workers=workers, error=CompareError)
     if client is not None and workers is not None:
         raise CompareError("client: give a client or workers, not both")
-    for name, flag in (("design_checks", design_checks), ("certificate", certificate)):
+    for name, flag in (
+        ("design_checks", design_checks),
+        ("certificate", certificate),
+        ("open_loop", open_loop),
+    ):
         if not isinstance(flag, bool):
             raise CompareError(f"{name} = {flag!r}: must be True or False")
     try:
@@ -939,11 +975,32 @@ def compare(
             kw = {"t_end": t_end, "bode": True, "certificate": certificate}
             tasks.append((compare_case, (spec, nominal_sc, p, model), kw))
             keys.append((c, NOMINAL_SCENARIO, True))
+    baseline: dict[str, dict[str, Any]] = {}  # the open loop per scenario
+    n_closed = len(tasks)
+    open_keys: list[str] = []
+    if open_loop:
+        for s, sc in scens.items():
+            if "open" not in sc.loops:
+                baseline[s] = {
+                    "controller": None,
+                    "scenario": s,
+                    "loop": "open",
+                    "status": None,
+                    "error": "no open-loop part (the scenario gives no [inputs.pedal] signal)",
+                }
+                continue
+            kw = {"t_end": t_end, "n_series": n_series}
+            tasks.append((compare_case, (None, sc, p, model), kw))
+            open_keys.append(s)
     out_all, n_workers, timing = _run_all(tasks, client=client, workers=workers, progress=progress)
     checked: dict[str, dict[str, Any]] = {}
     for r in out_all[:n_design]:
         checked.update(r)
-    results = out_all[n_design:]
+    results = out_all[n_design:n_closed]
+    for s, rec in zip(open_keys, out_all[n_closed:], strict=True):
+        if rec.get("status") != "failed":
+            rec["criteria"] = _criteria(rec, scens[s])
+        baseline[s] = rec
     timing["design_checks_s"] = sum(float(r.pop("seconds", 0.0)) for r in checked.values())
     timing["certificate_s"] = sum(
         float((r.get("linear") or {}).pop("certificate_s", 0.0)) for r in results
@@ -997,6 +1054,7 @@ def compare(
             "n_series": n_series,
             "design_checks": design_checks,
             "certificate": certificate,
+            "open_loop": open_loop,
         },
         "definitions": {
             "criteria": dict(CRITERIA),
@@ -1018,6 +1076,11 @@ def compare(
             "drift_window_s": DRIFT_WINDOW_S,
             "ratio_cap": RATIO_CAP,
             "series_units": dict(SERIES),
+            "open_loop": (
+                "the baseline: each scenario run in open loop, its pedal signal (a driver's "
+                "pedal, [inputs.pedal] of the scenario) instead of a controller; the same "
+                "metrics and criteria, not ranked"
+            ),
             "disagree": (
                 "the linear slip loop is closed-loop stable at the run's slip point and at the "
                 "later slip points (slip speed fallen to the fractions slip_fractions of its "
@@ -1030,6 +1093,7 @@ def compare(
         "nominal_linear": nominal,
         "design": design,
         "runs": {c: {s: runs[(c, s)] for s in scens} for c in specs},
+        "open_loop": {s: baseline[s] for s in scens if s in baseline},
         "verdict": _verdict(valid, list(scens), runs, nominal, w),
     }
     return Comparison(json_ready(data), time.perf_counter() - tic, n_workers, timing)

@@ -1,7 +1,8 @@
 """``compare`` / ``drivetrain-ctrl compare`` (issue 21 items 2-5): the contents of ``data.json``
 for three controllers on three scenarios (one of them unstable on the nominal slip loop: reported,
-not fatal; an unknown one beside them), its determinism, bad input, the verdict's arithmetic,
-the figures' legends and the HTML page. Reduced model, one local Dask worker shared by the
+not fatal; an unknown one beside them), the open-loop baseline, the slip loop's figures from one
+analysis, its determinism, bad input, the verdict's arithmetic, the figures' legends and the HTML
+page. Reduced model, one local Dask worker shared by the
 module; the full default comparison is the benchmark (``benchmarks/bench_compare.py``)."""
 
 from __future__ import annotations
@@ -189,7 +190,8 @@ def _the_report_files_and_their_legends(
     for name, fig in figs.items():
         legend = fig.axes[0].get_legend()
         names = {t.get_text().split(" ")[0] for t in legend.get_texts()}
-        extra = set() if name == "bode_slip" else {"reference"}
+        # the time responses: the reference and the open-loop baseline too
+        extra = set() if name == "bode_slip" else {"reference", "open"}
         assert names == {"paper", "pi", "high-gain"} | extra, name
 
 
@@ -278,6 +280,8 @@ def test_three_controllers_on_three_scenarios(
     _linear_against_nonlinear_is_stated(written)
     _the_report_files_and_their_legends(written)
     _certificate_absent_is_explained(written)
+    _the_open_loop_baseline_is_shown_not_ranked(written)
+    _slip_figures_from_one_analysis(written)
     checked = _the_html_is_self_contained_balanced_and_its_script_parses(written, tmp_path)
     _data_json_is_deterministic(client)
     if not checked:
@@ -306,7 +310,9 @@ def test_design_plant_set_recomputed_and_certified_sector(client: Any) -> None:
         n_series=20,
         client=client,
         progress=False,
+        open_loop=False,
     )
+    assert res.data["open_loop"] == {} and res.data["inputs"]["open_loop"] is False
     d = res.data["design"]
     rob = d["robust-pi"]
     assert rob["reason"] is None and rob["recorded"] is not None
@@ -337,6 +343,78 @@ def test_design_plant_set_recomputed_and_certified_sector(client: Any) -> None:
     assert [r[0] for r in cert_rows[1:]] == ["paper", "robust-pi"]
     design_rows = next(r for cap, r in tables.items() if cap.startswith("Design plant set"))
     assert any(r[0] == "robust-pi" and r[2].startswith("recorded") for r in design_rows)
+
+
+def _the_open_loop_baseline_is_shown_not_ranked(
+    written: tuple[dict[str, Any], list[str], Path],
+) -> None:
+    """open_loop=True (the default): each scenario run with its driver's pedal, no controller;
+    the metrics and criteria as for a controller, in the metrics table, never ranked."""
+    from drivetrain_ctrl.reporting.compare_report import BASELINE, compare_sections
+    from drivetrain_ctrl.studies.case import Case, simulate_case
+
+    data, _, _ = written
+    assert data["inputs"]["open_loop"] is True
+    base = data["open_loop"]
+    assert sorted(base) == sorted(data["inputs"]["scenarios"])
+    for s, rec in base.items():
+        assert rec["loop"] == "open" and rec["controller"] is None and rec["status"] == "ok", s
+        assert "linear" not in rec and "omega_ref_rpm" not in rec["series"]
+        assert len(rec["series"]["t_s"]) == N_SERIES
+        assert rec["series"]["t_s"] == data["runs"]["paper"][s]["series"]["t_s"]
+        m, cr = rec["metrics"], rec["criteria"]
+        assert m["tracking_rms_rpm"] is None  # no reference
+        assert cr["jerk"] == (m["jerk_max_m_s3"] <= JERK_LIMIT_M_S3)
+        assert cr["lockup"] == (m["lockup_time_s"] is not None)
+        # the same run as the case of the open loop
+        run = simulate_case(Case(scenario=s, model="reduced", loop="open"))
+        assert m["lockup_time_s"] == pytest.approx(run.metrics["lockup_time_s"], rel=1e-8)
+        # the pedal is the file's signal
+        sig = run.scenario.input_signals()["pedal"]
+        t = rec["series"]["t_s"]
+        assert rec["series"]["pedal_mm"] == pytest.approx([1e3 * float(sig(x)) for x in t])
+    # the driver's pedal jerks beyond the limit on paper-start, where law (6) does not
+    assert base["paper-start"]["criteria"]["jerk"] is False
+    assert data["runs"]["paper"]["paper-start"]["criteria"]["jerk"] is True
+    assert all(r["controller"] in ("paper", "pi") for r in data["verdict"]["ranking"])
+    tables = {cap: rows for _, _, tabs, _ in compare_sections(data) for cap, rows in tabs}
+    rows = tables["Metrics and criteria"]
+    assert [r[1] for r in rows if r[0] == BASELINE] == ["paper-start", "hill-start", "judder"]
+
+
+def _slip_figures_from_one_analysis(written: tuple[dict[str, Any], list[str], Path]) -> None:
+    """Every figure of the nominal slip loop is that of one loop_margins of one clutch_loop at
+    the slip point (its automatic grid), the judder figures those of linear_figures_at there."""
+    from drivetrain_ctrl.core.serialize import json_ready
+    from drivetrain_ctrl.linear.clutch import clutch_loop
+    from drivetrain_ctrl.linear.margins import loop_margins
+    from drivetrain_ctrl.linear.operating_point import slip_point_after_start
+    from drivetrain_ctrl.studies.case import Case, linear_figures_at, simulate_case
+
+    data, _, _ = written
+    run = simulate_case(Case(scenario="paper-start", model="reduced", controller="pi"))
+    op = slip_point_after_start(run.result, run.drivetrain, run.scenario.start_time)
+    cl = clutch_loop(op, run.controller)
+    m = json_ready(loop_margins(cl.L).to_dict())
+    slip = data["nominal_linear"]["pi"]["slip"]
+    for k in (
+        "gain_margin_db",
+        "phase_margin_deg",
+        "delay_margin_s",
+        "disk_margin",
+        "disk_margin_db",
+        "disk_margin_deg",
+        "ms",
+        "mt",
+        "crossover_rad_s",
+        "bandwidth_rad_s",
+        "stable",
+    ):
+        assert slip[k] == m[k], k
+    assert slip["closed_loop_poles"] == [[p["real"], p["imag"]] for p in m["closed_loop_poles"]]
+    fig = json_ready(linear_figures_at(op, run.controller, cl.engine, cl.L, loop_margins(cl.L)))
+    assert slip["judder"]["mu_slope_crit"] == fig["lin:mu_slope_crit"]
+    assert slip["operating_point"]["t_s"] == pytest.approx(op.t)
 
 
 def _certificate_absent_is_explained(written: tuple[dict[str, Any], list[str], Path]) -> None:
@@ -580,3 +658,35 @@ def test_all_scenarios_are_the_closed_loop_builtins() -> None:
         "heavy-load",
         "tip-out-reengage",
     ]
+
+
+def test_a_scenario_without_a_pedal_has_no_baseline_and_says_so(
+    client: Any, tmp_path: Path
+) -> None:
+    """A closed-loop-only scenario file is compared; its baseline row names what is missing."""
+    import tomli_w
+
+    from drivetrain_ctrl.reporting.compare_report import BASELINE, compare_sections
+    from drivetrain_ctrl.scenarios import load_scenario
+
+    d = load_scenario("paper-start").to_dict()
+    del d["inputs"]["pedal"]
+    d["name"] = "closed-only"
+    f = tmp_path / "closed-only.toml"
+    f.write_bytes(tomli_w.dumps(d).encode())
+    res = compare(
+        controllers="paper",
+        scenarios=[f],
+        model="reduced",
+        t_end=1.5,
+        n_series=10,
+        client=client,
+        progress=False,
+        design_checks=False,
+        certificate=False,
+    )
+    base = res.data["open_loop"]["closed-only"]
+    assert base["status"] is None and "no open-loop part" in base["error"]
+    assert res.data["runs"]["paper"]["closed-only"]["status"] == "ok"
+    paras = [p for title, ps, _, _ in compare_sections(res.data) for p in ps]
+    assert any(p.startswith(f"{BASELINE} on closed-only: no open-loop part") for p in paras)
