@@ -123,3 +123,49 @@ def test_the_clutch_certificate_bisects_to_one_per_mille_by_default() -> None:
 
     for f in (clutch_sector_certificate, common_lyapunov):
         assert inspect.signature(f).parameters["rtol"].default == 1e-3
+
+
+G3 = control.tf([1.0], np.polymul(np.polymul([1.0, 1.0], [1.0, 2.0]), [1.0, 3.0]))
+
+
+def test_certified_end_of_a_grown_sector() -> None:
+    """largest_sector grows the upper end of [0, 0] for 1/((s+1)(s+2)(s+3)) up to limit = 2,
+    inside the circle criterion's bound -1/min Re G (computed here on a dense grid): the sector
+    [0, 2] is certified and certified_end is 2; a plain sector certificate has no grown end."""
+    from drivetrain_ctrl.design.certificates import largest_sector, sector_certificate
+
+    w = np.logspace(-3, 3, 200001)
+    circle = -1.0 / float(np.min(np.real(G3(1j * w))))
+    assert circle > 2.0
+    cert = largest_sector(G3, (0.0, 0.0), limit=2.0)
+    assert cert.feasible and cert.sectors == ((0.0, 2.0),) and cert.certified_end == 2.0
+    plain = sector_certificate(G3, (0.0, 2.0))
+    assert plain.feasible and plain.certified_end is None
+
+
+def test_no_linear_limit_below_a_billion_is_an_error() -> None:
+    """G3 scaled by 60/1.5e9: its linear (Hurwitz) limit, 60 for G3, becomes 1.5e9, beyond the
+    search range of 1e9 (times max(1, |start|)) used when no limit is given: an error asking
+    for a limit."""
+    from drivetrain_ctrl.design.certificates import largest_sector
+
+    with pytest.raises(ValueError, match=r"up to 1e\+09; give limit"):
+        largest_sector(G3 * (60.0 / 1.5e9), (0.0, 0.0))
+
+
+def test_the_clutch_certificate_refuses_a_slope_limit_of_zero() -> None:
+    """mu_slope_limit, the most negative slope of interest, must be < 0 [s/rad]."""
+    from drivetrain_ctrl import default_params, reduced_model
+    from drivetrain_ctrl.core.units import rpm_to_rad_s
+    from drivetrain_ctrl.design.certificates import clutch_sector_certificate
+    from drivetrain_ctrl.linear import slip_operating_point
+
+    op = slip_operating_point(
+        reduced_model(default_params()),
+        omega_engine=rpm_to_rad_s(1600),
+        omega_driven=50.0,
+        x_c=0.07,
+        throttle=0.6,
+    )
+    with pytest.raises(ValueError, match=r"mu_slope_limit = 0.0: must be < 0"):
+        clutch_sector_certificate(op, None, mu_slope_limit=0.0)
