@@ -55,3 +55,17 @@ def test_the_stability_screen_rejects_a_pole_on_the_boundary() -> None:
     small = np.array([0.1])
     assert _stable_mask(Pd, small, small, "forward", 5).tolist() == [True]
     assert _stable_mask(Plant(1 / (s + 1)), small, small, "continuous", 5).tolist() == [True]
+
+
+@pytest.mark.parametrize(("offset", "hint"), [(0.5e-10, True), (3e-10, False)])
+def test_a_pole_near_z_1_is_an_integrator_only_within_the_tolerance(
+    offset: float, hint: bool
+) -> None:
+    """-0.01 / (z - 1 - e), Ts = 0.01 s: a PI with positive gains fails on it (negative gain
+    above the lowest frequencies). The low-frequency sign divides out roots at z = 1 up to
+    |c(1)| <= 1e-10 sum|c| (here 2e-10): for e = 0.5e-10 the pole counts as an integrator, the
+    gain with it divided out is -0.01 < 0 and the message hints at the sign; for e = 3e-10 it
+    does not, the gain at z = 1 is -0.01 / (-3e-10) > 0 and there is no such hint."""
+    d = design_pi(control.tf([-0.01], [1.0, -(1.0 + offset)], 0.01), wc=1.0, phase_margin=60.0)
+    assert not d.feasible
+    assert ("low-frequency gain is negative" in d.message) is hint
