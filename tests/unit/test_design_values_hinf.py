@@ -151,3 +151,19 @@ def test_automatic_order_is_the_smallest_within_the_reduction_tolerance() -> Non
     assert d.order_full == 5 and d.order_reduced == 5
     assert 1.05 * ref < d4.norm_reduced <= 1.2 * ref and d4.order_reduced == 4
     assert d.to_dict()["controller_reduced"]["dt"] == 0.0
+
+
+def test_in_a_daemonic_process_the_synthesis_runs_as_a_script(monkeypatch) -> None:  # noqa: ANN001
+    """A daemonic process (a pool or Dask worker) may not fork children: _can_fork says so and
+    the synthesis runs in a fresh interpreter instead, with the same optimum as the forked run
+    (forking there fails: "daemonic processes are not allowed to have children")."""
+    import multiprocessing as mp
+
+    from drivetrain_ctrl.design.hinf import _can_fork
+
+    assert _can_fork()  # Linux, a normal process
+    forked = hinf_mixsyn(control.tf([1.0], [1.0, 1.0]), bandwidth=5.0)
+    monkeypatch.setitem(mp.current_process()._config, "daemon", True)  # type: ignore[attr-defined]
+    assert not _can_fork()
+    d = hinf_mixsyn(control.tf([1.0], [1.0, 1.0]), bandwidth=5.0)
+    assert d.gamma_optimal == pytest.approx(forked.gamma_optimal, rel=1e-9)
