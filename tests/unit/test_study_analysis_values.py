@@ -342,6 +342,13 @@ def test_fewest_rows_for_a_correlation_and_an_index_is_ten() -> None:
     y = x**2
     assert A._spearman(x, y) == pytest.approx((1.0, 0.0), abs=1e-12)
     assert math.isfinite(first_order_index(x, y)[0])
+    # a range of exactly 1 in either column is a range like any other
+    u = np.linspace(0.0, 1.0, 10)
+    for a, b in ((u, y), (x, u), (u, u**2)):
+        assert np.ptp(a) == 1.0 or np.ptp(b) == 1.0
+        rho, p = A._spearman(a, b)
+        assert rho == pytest.approx(stats.spearmanr(a, b).statistic) and math.isfinite(p)
+        assert math.isfinite(first_order_index(a, b)[0])
     for a, b in ((x[:9], y[:9]), (np.ones(10), y), (x, np.ones(10))):
         assert all(math.isnan(v) for v in A._spearman(a, b))
         assert all(math.isnan(v) for v in first_order_index(a, b))
