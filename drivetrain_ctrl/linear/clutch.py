@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -707,6 +708,10 @@ JUDDER_FIRST_STEP: float = 1e-7
 JUDDER_GRID_RATIO: float = 1.5
 JUDDER_SEARCH_LIMIT: float = 1.0
 
+#: slopes of the search's grid whose poles :func:`judder_crossing` computes in one call on the
+#: affine matrix (``evaluations`` counts only those examined before the first unstable one)
+JUDDER_BATCH: int = 8
+
 #: a pole with ``|Re p| <= JUDDER_BOUNDARY_TOL * max(1, |p|)`` [1/s] counts as on the stability
 #: boundary (not asymptotically stable)
 JUDDER_BOUNDARY_TOL: float = 1e-9
@@ -941,14 +946,33 @@ def judder_crossing(
                 "is no threshold to cross"
             ),
         )
-    a, b = 0.0, None
+    grid = []
     v = -JUDDER_FIRST_STEP
     while v >= -search_limit * (1 + 1e-12):
-        if unstable(poles(v)):
+        grid.append(v)
+        v *= JUDDER_GRID_RATIO
+
+    def grid_poles() -> Iterator[NDArray[np.complex128]]:
+        """The poles at the grid's slopes in turn; on the affine matrix
+        :data:`JUDDER_BATCH` eigenvalue problems at a time (the same problems, one call)."""
+        nonlocal count
+        if affine is None:
+            for v in grid:
+                yield poles(v)
+            return
+        A0, dA = affine
+        for k in range(0, len(grid), JUDDER_BATCH):
+            vs = np.asarray(grid[k : k + JUDDER_BATCH])
+            for p in np.linalg.eigvals(A0 + vs[:, None, None] * dA):
+                count += 1  # counted as they are examined, as one at a time
+                yield np.asarray(p, dtype=complex)
+
+    a, b = 0.0, None
+    for v, p in zip(grid, grid_poles(), strict=False):
+        if unstable(p):
             b = v
             break
         a = v
-        v *= JUDDER_GRID_RATIO
     if b is None:
         return JudderCrossing(
             **none,

@@ -108,14 +108,38 @@ def _auto_grid(L: Any, *, n: int = 4000, span: float = 1e3, tiny: float = 0.0) -
     fastest pole or zero of ``L`` with magnitude above ``tiny`` (discrete: ``ln(z)/dt``, up to
     0.999 of the Nyquist frequency)."""
     dt = _dt_of(L)
-    feats = [abs(complex(x)) for x in np.concatenate([L.poles(), L.zeros()])]
+    pz = np.concatenate(_poles_zeros(L))
+    feats = [abs(complex(x)) for x in pz]
     if dt:
-        zs = [complex(x) for x in np.concatenate([L.poles(), L.zeros()]) if abs(complex(x)) > 1e-12]
+        zs = [complex(x) for x in pz if abs(complex(x)) > 1e-12]
         feats = [abs(complex(np.log(z) / dt)) for z in zs]
     feats = [f for f in feats if f > tiny and np.isfinite(f)] or [1.0]
     lo = min(feats) / span
     hi = math.pi / dt * 0.999 if dt else max(feats) * span
     return np.logspace(math.log10(lo), math.log10(hi), n)
+
+
+def _siso_tf(L: Any) -> bool:
+    return isinstance(L, control.TransferFunction) and L.ninputs == 1 and L.noutputs == 1
+
+
+def _poles_zeros(L: Any) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """Poles and zeros of ``L``; a SISO transfer function's as the roots of its denominator and
+    numerator (python-control's ``poles()`` goes through a common denominator: the same roots,
+    at several times the cost)."""
+    if _siso_tf(L):
+        num, den = L.num[0][0], L.den[0][0]
+        return np.roots(den).astype(complex), np.roots(num).astype(complex)
+    return np.asarray(L.poles(), dtype=complex), np.asarray(L.zeros(), dtype=complex)
+
+
+def _closed_loop_poles(L: Any) -> NDArray[np.complex128]:
+    """Poles of the negative-feedback loop ``feedback(L, 1)``: for a SISO transfer function the
+    roots of ``den + num`` (the denominator python-control's ``feedback`` forms)."""
+    if _siso_tf(L):
+        char = np.trim_zeros(np.polyadd(L.den[0][0], L.num[0][0]), "f")
+        return np.roots(char).astype(complex)
+    return np.asarray(control.feedback(L, 1).poles(), dtype=complex)
 
 
 def _grid(L: Any, omega: Sequence[float] | None) -> F64:
@@ -239,9 +263,8 @@ def loop_margins(L: Any, *, omega: Sequence[float] | None = None) -> LoopMargins
     _check_siso(L)
     dt = _dt_of(L)
     reasons: list[tuple[str, str]] = []
-    Lt = trim_tf(L)
-    cl = control.feedback(Lt, 1)
-    cpoles = np.asarray(cl.poles(), dtype=complex)
+    Lt = L if _siso_tf(L) else trim_tf(L)
+    cpoles = _closed_loop_poles(Lt)
     stable = bool(np.all(np.abs(cpoles) < 1.0)) if dt else bool(np.all(cpoles.real < 0))
     gm, pm, _sm, wpc, wgc, _wms = control.stability_margins(Lt)
     gm_db = None
