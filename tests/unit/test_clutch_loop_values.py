@@ -525,3 +525,46 @@ def test_vehicle_paths_are_siso_minimal_realisations() -> None:
     assert _resp(L.pedal_to_vehicle_accel(op, mu_slope=mu), W) == pytest.approx(
         np.array(want), rel=1e-7
     )
+
+
+def test_a_measurement_with_feedthrough_closes_an_algebraic_loop() -> None:
+    """A controller that measures the clutch torque (feedthrough from x_c) with no actuator and
+    a proportional part: ``x_c = sgn (Ck xk + Dk (Cm x + Dm x_c))`` is solved for x_c, i.e.
+    ``x_c = sgn (Ck xk + Dk Cm x) / (1 - sgn Dk Dm)``, written out here."""
+    op = _slip(P_MU)
+    ctrl = dataclasses.replace(
+        _pi(P_MU), actuator=None,
+        measurement=((1.0, "ref"), (-1.0, "omega_engine"), (1e-3, "tau_13")),
+    )  # fmt: skip
+
+    def closed(mu: float | None) -> np.ndarray:
+        sys = L.linearise(op, inputs=("x_c",), mu_slope=mu)
+        A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+        lab = list(sys.output_labels)
+        Cm = -C[lab.index("omega_engine")] + 1e-3 * C[lab.index("tau_13")]
+        Dm = 1e-3 * D[lab.index("tau_13"), 0]
+        k = ctrl.lti
+        Ak, Bk, Ck, Dk = (float(np.asarray(m)[0, 0]) for m in (k.A, k.B, k.C, k.D))
+        sgn = 1.0  # slip+
+        den = 1.0 - sgn * Dk * Dm
+        assert abs(Dk * Dm) > 1e-3  # the feedthrough matters
+        # x_c = gx . x + gk xk
+        gx, gk = sgn * Dk * Cm / den, sgn * Ck / den
+        n = A.shape[0]
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = A + np.outer(B[:, 0], gx)
+        M[:n, n] = B[:, 0] * gk
+        M[n, :n] = Bk * (Cm + Dm * gx)
+        M[n, n] = Ak + Bk * Dm * gk
+        return M
+
+    for mu in (None, -1e-3):
+        got = np.sort_complex(L.slip_mode_poles(op, ctrl, mu_slope=mu))
+        ref = np.sort_complex(np.linalg.eigvals(closed(mu)))
+        assert got == pytest.approx(ref, rel=1e-7, abs=1e-9)
+    jc = L.judder_crossing(op, ctrl)
+    assert jc.spectral_abscissa_at_zero == pytest.approx(_rightmost(closed(0.0)), rel=1e-7)
+    if jc.available:
+        assert (
+            _rightmost(closed(jc.stable_side)) < 0.0 <= _rightmost(closed(jc.unstable_side)) + 1e-9
+        )
