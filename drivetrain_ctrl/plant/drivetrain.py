@@ -51,6 +51,7 @@ wheel inertia left for the tyre to slip against; the reduced model assumes grip
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -62,7 +63,7 @@ from ..core.units import GRAVITY
 from ..core.validate import is_finite_real
 from .chain import Body, Chain, Coupling, Friction, LaggedSource, Spring
 from .model import Model
-from .params import DrivetrainParams
+from .params import ClutchParams, DrivetrainParams
 
 __all__ = [
     "Drivetrain",
@@ -138,7 +139,14 @@ def clutch_friction(p: DrivetrainParams) -> Friction:
     :meth:`Friction.capacity_slope` gives k12'(x_c) [N m/m]."""
     if not isinstance(p, DrivetrainParams):
         raise TypeError(f"params = {p!r}: must be a DrivetrainParams (e.g. default_params())")
-    c = p.clutch
+    try:
+        return _clutch_friction_kept(p.clutch)
+    except TypeError:  # clutch parameters that cannot be hashed: built afresh
+        return _clutch_friction(p.clutch)
+
+
+def _clutch_friction(c: ClutchParams) -> Friction:
+    """:func:`clutch_friction` of the clutch parameters ``c`` (immutable, as its result)."""
     k12 = PwlTable(
         tuple(float(v) for v in c.pedal_map.x),
         tuple(c.k12_max * float(v) for v in c.pedal_map.y),
@@ -153,6 +161,11 @@ def clutch_friction(p: DrivetrainParams) -> Friction:
         mode_names=("stuck", "slip+", "slip-", "open"),
         name="clutch",
     )
+
+
+#: the clutch element of the last few clutch parameter sets (a study row builds its drivetrain
+#: and checks its controller with the same clutch)
+_clutch_friction_kept = functools.lru_cache(maxsize=32)(_clutch_friction)
 
 
 def _vehicle(p: DrivetrainParams, slope: float) -> Body:

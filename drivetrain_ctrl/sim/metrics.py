@@ -49,7 +49,7 @@ from ..core.units import m_s_to_kmh, rad_s_to_rpm
 from ..core.validate import is_finite_real
 from ..kernels.physics import ChainData
 from ..plant.model import Model
-from .series import RunSeries, state_derivatives
+from .series import RunSeries
 from .simulator import SimulationResult
 
 __all__ = [
@@ -316,7 +316,7 @@ def _run_series(res: SimulationResult, D: ChainData) -> RunSeries:
 def _state_accelerations(s: RunSeries) -> tuple[F64, F64]:
     """``(right, left)`` of :func:`state_accelerations` from ``s`` (its state derivatives are
     ``right``; ``left`` is a copy with the event rows re-evaluated in the previous mode)."""
-    D, X, U, FM, REG = s.D, s.X, s.U, s.FM, s.REG
+    X, FM, REG = s.X, s.FM, s.REG
     right = s.state_derivatives()
     left = right.copy()
     changed = np.zeros(X.shape[0], dtype=bool)
@@ -324,7 +324,7 @@ def _state_accelerations(s: RunSeries) -> tuple[F64, F64]:
         changed[1:] = np.any(FM[1:] != FM[:-1], axis=1) | np.any(REG[1:] != REG[:-1], axis=1)
     idx = np.flatnonzero(changed)
     if idx.size:
-        left[idx] = state_derivatives(D, X[idx], U[idx], FM[idx - 1], REG[idx - 1])
+        left[idx] = s.at(idx, idx - 1).state_derivatives()
     return right, left
 
 

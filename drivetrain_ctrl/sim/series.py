@@ -143,11 +143,15 @@ def _state_derivatives(s: RunSeries) -> F64:
     n = D.M.shape[0]
     out = np.zeros((N, X.shape[1]))
     tau = s.body_forces()
-    modes, inv = s.mode_groups()
+    modes, _inv = s.mode_groups()
+    order, starts = s.group_order()
+    tau_s = tau[order]  # the samples grouped by mode: one gather, then slices
+    acc_s = np.empty((N, n))
     for g in range(modes.shape[0]):
         P, _ = s.mode_matrices(g)
-        sel = inv == g
-        out[sel, :n] = tau[sel] @ P.T
+        rows = slice(int(starts[g]), int(starts[g + 1]))
+        acc_s[rows] = tau_s[rows] @ P.T
+    out[order, :n] = acc_s
     for i in range(n):
         if D.b_pos[i] >= 0:
             out[:, D.b_pos[i]] = X[:, i]
@@ -175,23 +179,23 @@ def _coupling_torques(s: RunSeries) -> F64:
     lam = np.zeros(FM.shape, dtype=float)
     if np.any(stuck[:, coupled]):
         tau = s.body_forces()
-        modes, inv = s.mode_groups()
+        modes, _inv = s.mode_groups()
+        order, starts = s.group_order()
+        # the samples grouped by mode (one gather each, then contiguous slices)
+        U_s = np.ascontiguousarray(U[order], dtype=float)
+        REG_s = np.ascontiguousarray(REG[order], dtype=np.int64)
+        tau_s = np.ascontiguousarray(tau[order], dtype=float)
+        lam_s = np.zeros(FM.shape, dtype=float)
         for g in range(modes.shape[0]):
             if not np.any(modes[g] == K.STUCK):
                 continue
             fm = np.ascontiguousarray(modes[g], dtype=np.int64)
             _, Lam = s.mode_matrices(g)
-            sel = inv == g
+            rows = slice(int(starts[g]), int(starts[g + 1]))
             # the kernel's one definition of the stuck torques (not a numpy re-implementation):
             # in a statically indeterminate stuck set the distribution is an LP's solution
-            lam[sel] = K.stuck_torques_rows(
-                D,
-                np.ascontiguousarray(U[sel], dtype=float),
-                fm,
-                np.ascontiguousarray(REG[sel], dtype=np.int64),
-                Lam,
-                np.ascontiguousarray(tau[sel], dtype=float),
-            )
+            lam_s[rows] = K.stuck_torques_rows(D, U_s[rows], fm, REG_s[rows], Lam, tau_s[rows])
+        lam[order] = lam_s
     F = s.slip_torques()
     for f in coupled:
         c = int(D.f_idx[f])
@@ -219,6 +223,7 @@ class RunSeries:
         self._springs: dict[int, F64] = {}
         self._forces: F64 | None = None
         self._groups: tuple[I64, I64] | None = None
+        self._order: tuple[I64, I64] | None = None
         self._matrices: dict[int, tuple[F64, F64]] = {}
         self._derivatives: F64 | None = None
         self._couplings: F64 | None = None
@@ -247,6 +252,28 @@ class RunSeries:
         if self._groups is None:
             self._groups = _mode_groups(self.FM)
         return self._groups
+
+    def at(self, rows: I64, mode_rows: I64) -> RunSeries:
+        """The series of the states and inputs of ``rows`` in the modes (friction modes and
+        table regions) of ``mode_rows``, e.g. the samples after events in the modes before them;
+        it shares this series' mode groups and their matrices (``mode_rows`` are samples of
+        this run)."""
+        sub = RunSeries(self.D, self.X[rows], self.U[rows], self.FM[mode_rows], self.REG[mode_rows])
+        modes, inv = self.mode_groups()
+        sub._groups = (modes, inv[mode_rows])
+        sub._matrices = self._matrices  # group g is the same mode in both
+        return sub
+
+    def group_order(self) -> tuple[I64, I64]:
+        """``(order, starts)``: the samples sorted by mode group (stable: in time within a
+        group) and where each group starts in that order (``starts[g]:starts[g + 1]``)."""
+        if self._order is None:
+            modes, inv = self.mode_groups()
+            order = np.argsort(inv, kind="stable")
+            starts = np.zeros(modes.shape[0] + 1, dtype=np.int64)
+            np.cumsum(np.bincount(inv, minlength=modes.shape[0]), out=starts[1:])
+            self._order = (np.asarray(order, dtype=np.int64), starts)
+        return self._order
 
     def mode_matrices(self, g: int) -> tuple[F64, F64]:
         """``(P, Lam)`` of mode group ``g`` of :meth:`mode_groups`
