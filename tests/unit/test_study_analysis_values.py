@@ -701,3 +701,37 @@ def test_a_worst_run_is_re_simulated_and_compared_to_its_row(tmp_path: Path) -> 
     assert tr["omega_ref_rpm"] == pytest.approx([run.scenario.reference(x) * rpm for x in t], rel=1e-8)  # fmt: skip
     assert tr["driven_state"] == "omega_primary"
     assert len(tr["clutch_torque_Nm"]) == len(tr["vehicle_accel_m_s2"]) == t.size
+
+
+def test_equal_indices_are_ranked_by_the_rank_correlation(one: Path, tmp_path: Path) -> None:
+    """Two parameters with the same largest first-order index (each drives one criterion's
+    metric through the same non-monotone function, on the same set of values): the one with
+    the larger |Spearman| on any ranked metric comes first, then the name."""
+    out = tmp_path / "tie"
+    shutil.copytree(one, out)
+    df = pd.read_parquet(out / "results")
+    rng = np.random.default_rng(4)
+    n = len(df)
+    a = rng.permutation(np.linspace(0.0, 1.0, n))
+    b = rng.permutation(a)
+    df["param:vehicle.M_v"], df["param:clutch.k12_max"] = a, b
+    df["status"] = "ok"
+    df["lockup_time_s"] = (a - 0.5) ** 2
+    df["jerk_max_m_s3"] = (b - 0.5) ** 2
+    df["engine_speed_min_rpm"] = a + 3.0 * rng.random(n)  # a weak monotone effect of M_v
+    df["controller"] = "paper"  # one group
+    for f in (out / "results").glob("chunk-*.parquet"):
+        f.unlink()
+    df.to_parquet(out / "results" / "chunk-0.parquet")
+    e = analyse_study(out, resimulate=False).data["sensitivity"][0]
+    r = {x["parameter"]: x for x in e["ranking"]}
+    m, k = r["vehicle.M_v"], r["clutch.k12_max"]
+    assert m["sobol_first_max"] == k["sobol_first_max"]  # the same sorted (x, y) pairs
+    assert (m["on_metric"], k["on_metric"]) == ("lockup_time_s", "jerk_max_m_s3")
+    rho = {
+        p: max(abs(stats.spearmanr(x, df[c]).statistic) for c in e["ranked_on"])
+        for p, x in (("vehicle.M_v", a), ("clutch.k12_max", b))
+    }
+    assert m["abs_spearman_max"] == pytest.approx(rho["vehicle.M_v"], rel=1e-8)
+    assert rho["vehicle.M_v"] > rho["clutch.k12_max"] + 0.1
+    assert [x["parameter"] for x in e["ranking"]] == ["vehicle.M_v", "clutch.k12_max"]
