@@ -981,7 +981,12 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument(
         "--scheduler", default=None, help="address of a running Dask scheduler (tcp://host:8786)"
     )
-    sr.add_argument("--chunk-size", type=_positive_int, default=None, help="runs per Dask task")
+    sr.add_argument(
+        "--chunk-size",
+        type=_positive_int,
+        default=None,
+        help="runs per Dask task (default: sized to about 2 s of work each)",
+    )
     sr.add_argument("--no-progress", action="store_true", help="no progress bar")
     sr.set_defaults(func=_cmd_study_run)
     srp = stsub.add_parser(
