@@ -568,3 +568,58 @@ def test_a_measurement_with_feedthrough_closes_an_algebraic_loop() -> None:
         assert (
             _rightmost(closed(jc.stable_side)) < 0.0 <= _rightmost(closed(jc.unstable_side)) + 1e-9
         )
+
+
+def test_a_measurement_of_several_speeds_sums_their_paths() -> None:
+    op = _slip(P_MU)
+    two = dataclasses.replace(
+        _pi(P_MU), measurement=((1.0, "ref"), (-1.0, "omega_engine"), (0.5, "omega_primary"))
+    )
+    loop = L.clutch_loop(op, two)
+    assert _resp(loop.L, W) == pytest.approx(_loop_response(op, two, W), rel=1e-8)
+    one = L.clutch_loop(op, _pi(P_MU))
+    assert not np.allclose(_resp(loop.L, W), _resp(one.L, W), rtol=1e-3)
+
+
+def test_the_analysis_results_are_frozen() -> None:
+    op = _slip(P)
+    locked = L.locked_analysis(L.locked_trim(reduced_model(P), vehicle_speed_kmh=25.0))
+    for obj, name in (
+        (L.clutch_loop(op, _law6()), "L"),
+        (L.judder_crossing(op, None), "mu_slope_crit"),
+        (L.judder_threshold(op, None), "c_crit"),
+        (L.engine_side(op), "k13"),
+        (locked, "poles"),
+    ):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, name, None)
+
+
+def test_a_sampled_crossing_reports_the_plant_modes_frequency() -> None:
+    """ln(z)/dt knows a frequency only up to multiples of the sample rate: the crossing's
+    frequency is that of the continuous plant mode lambda whose exp(lambda dt) is the crossing
+    pole z (within 1 %), found here from the plant's eigenvalues at the unstable side; else
+    |Im ln z|/(2 pi dt)."""
+    op = _slip(P)
+    branches = set()
+    for dt, delay in ((0.01, 0), (0.01, 1), (0.002, 0), (0.02, 0)):
+        jc = L.judder_crossing(op, _pi(P, dt=dt, delay=delay))
+        z = complex(np.exp(jc.crossing_pole * dt))
+        A = L.linearise(op, inputs=("x_c",), mu_slope=jc.unstable_side).A
+        lam = np.linalg.eigvals(np.asarray(A))
+        k = int(np.argmin(np.abs(np.exp(lam * dt) - z)))
+        if abs(np.exp(lam[k] * dt) - z) <= 0.01 * max(abs(z), 1.0):  # a plant mode
+            branches.add("plant")
+            f = abs(lam[k].imag) / (2 * math.pi)
+            assert jc.frequency_hz == pytest.approx(f, rel=1e-12)
+            assert jc.frequency_note == (
+                "the plant mode exp(lambda dt) nearest to the crossing closed-loop pole z"
+                + (" (above the sampled loop's Nyquist frequency)" if f > 0.5 / dt else "")
+            )
+        else:
+            branches.add("z")
+            f = abs(jc.crossing_pole.imag) / (2 * math.pi)
+            assert jc.frequency_hz == pytest.approx(f, rel=1e-12)
+            assert jc.frequency_note.startswith("|Im ln(z)|/(2 pi dt) of the crossing")
+            assert f"sample rate {1 / dt:g} Hz" in jc.frequency_note
+    assert branches == {"plant", "z"}
