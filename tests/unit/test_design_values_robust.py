@@ -122,3 +122,16 @@ def test_spec_lower_bounds_are_as_documented() -> None:
         RobustSpec(ks_max=0.0)
     with pytest.raises(ValueError, match=r"check_points = 9: must be an integer >= 10"):
         RobustSpec(check_points=9)
+
+
+def test_steps_at_the_trust_limit_are_unbounded_only_after_a_millionfold_growth() -> None:
+    """From a start far below the optimum, ki = 1e-4, each convex step is at its trust limit:
+    ki moves by trust times its size plus the 1e-3 floor, a factor 2.001, for more than five
+    steps in a row. That is not an unbounded problem (ki grows about 4000-fold, not 1e6-fold):
+    the iteration goes on to the optimum of the automatic start."""
+    plant = Plant(1 / (s + 1), 0.5)
+    auto = robust_pi(plant, ms=1.4, omega=W0)
+    r = robust_pi(plant, ms=1.4, omega=W0, start=(0.1, 1e-4))
+    ratios = np.array(r.ki_history[1:]) / np.array(r.ki_history[:-1])
+    assert ratios[:6] == pytest.approx([2.001] * 6, rel=1e-9)
+    assert r.converged and r.ki == pytest.approx(auto.ki, rel=1e-3)
