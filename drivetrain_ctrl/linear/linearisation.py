@@ -133,7 +133,8 @@ def _compute_base_parts(op: OperatingPoint) -> _BaseParts:
     A = np.array(A)
     B = np.array(B)
     no_stuck = _with_codes(mode, {f: K.OPEN for f in range(len(mode.fm)) if mode.fm[f] == K.STUCK})
-    J1_, B1_ = m.jacobian(x, u, no_stuck)
+    # without a stuck element the mode is its own stuck-free version: the same Jacobian
+    J1_, B1_ = (A, B) if no_stuck == mode else m.jacobian(x, u, no_stuck)
     dtau_dx = M[:, None] * np.asarray(J1_)[:n]
     dtau_du = M[:, None] * np.asarray(B1_)[:n]
     no_clutch = _with_codes(no_stuck, {fc: K.OPEN})

@@ -772,6 +772,9 @@ def _reduction_of(model: Model, mode: Mode, *, keep_positions: bool) -> _Reducti
     pref = [0] + [i for i in range(n - 1, 0, -1) if bodies[i].kind == "translational"]
     pref += [i for i in range(n) if i not in pref]
     rows: list[int] = []
+    if r == n:  # no constraint (no stuck element): every speed is independent
+        pref = []
+        rows = list(range(n))
     for i in pref:
         trial = rows + [i]
         if np.linalg.matrix_rank(N[trial], tol=1e-9) == len(trial):
