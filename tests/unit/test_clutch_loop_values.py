@@ -590,6 +590,7 @@ def test_the_analysis_results_are_frozen() -> None:
         (L.judder_threshold(op, None), "c_crit"),
         (L.engine_side(op), "k13"),
         (locked, "poles"),
+        (L.clutch_loop_margins(op, _law6()), "gain_margin_db"),
     ):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, name, None)
