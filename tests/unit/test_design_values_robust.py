@@ -135,3 +135,17 @@ def test_steps_at_the_trust_limit_are_unbounded_only_after_a_millionfold_growth(
     ratios = np.array(r.ki_history[1:]) / np.array(r.ki_history[:-1])
     assert ratios[:6] == pytest.approx([2.001] * 6, rel=1e-9)
     assert r.converged and r.ki == pytest.approx(auto.ki, rel=1e-3)
+
+
+def test_an_unbounded_problem_is_declared_at_a_millionfold_growth_of_ki() -> None:
+    """1/(s + 1) without delay: Ms never limits the gains. From ki = 0.01 every step is at its
+    trust limit (factor 2.001), and the error comes at the first step past 1e6 x 0.01 = 1e4,
+    so the ki it names lies between 1e4 and 2.001e4."""
+    import re
+
+    from drivetrain_ctrl.design.robust import UnboundedSpecError
+
+    with pytest.raises(UnboundedSpecError, match="without bound") as e:
+        robust_pi(1 / (s + 1), ms=1.4, start=(0.1, 0.01), omega=W0)
+    m = re.search(r"from 0\.01 to ([0-9.e+]+),", str(e.value))
+    assert m is not None and 1e4 < float(m.group(1)) <= 2.001e4
