@@ -169,3 +169,14 @@ def test_the_clutch_certificate_refuses_a_slope_limit_of_zero() -> None:
     )
     with pytest.raises(ValueError, match=r"mu_slope_limit = 0.0: must be < 0"):
         clutch_sector_certificate(op, None, mu_slope_limit=0.0)
+
+
+def test_the_linear_limit_search_range_scales_with_the_start() -> None:
+    """The search for the linear limit reaches 1e9 max(1, |start|): growing [0, 2] (start 2) of
+    G3 scaled by 60/7e8, whose linear limit is 7e8 (60 for G3: phase -180 deg at w^2 = 11, where
+    |G3| = 1/60), finds it (7e8 < 2e9)."""
+    from drivetrain_ctrl.design.certificates import largest_sector
+
+    cert = largest_sector(G3 * (60.0 / 7e8), (0.0, 2.0), rtol=1e-2)
+    assert cert.linear_limit == pytest.approx(7e8, rel=1e-6)
+    assert cert.feasible and 2.0 < cert.certified_end < 7e8
