@@ -290,12 +290,10 @@ def _loop_parts(
     # a sampled loop: python-control's realisation of the plant (the ZOH and the conversion to
     # a transfer function are ill-conditioned for it: another realisation moves its figures
     # beyond round-off)
-    sys = linearise(op, inputs=("throttle", "x_c"), mu_slope=mu_slope)
-    meas = None
-    for coef, src in controller.measurement:
-        if src != "ref":
-            Pk = _siso(sys, "x_c", src) * float(coef)
-            meas = Pk if meas is None else meas + Pk
+    # one realisation: the measured speeds' output rows summed (:func:`_measured_plant`); a sum
+    # of one system per speed would hold a copy of the plant per speed, whose unstable modes
+    # (uncontrollable from the loop) would stay in the closed loop
+    meas = _measured_plant(linearise(op, inputs=("x_c",), mu_slope=mu_slope), controller)
     Ts = float(Cl.dt)
     Pd = control.sample_system(control.ss(meas * _error_chain(controller, op)), Ts, method="zoh")
     if controller.delay_samples:

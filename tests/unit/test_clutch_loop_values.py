@@ -587,23 +587,13 @@ def test_a_measurement_of_several_speeds_sums_their_paths() -> None:
         _pi(P_MU, dt=0.01, delay=1),
         measurement=((1.0, "ref"), (-1.0, "omega_engine"), (0.5, "omega_primary")),
     )
-    # every pole of the interconnection is a pole of the closed loop (which holds more: see the
-    # strict xfail below)
+    # every pole of the interconnection is a pole of the closed loop
     z = np.linalg.eigvals(np.asarray(L.clutch_loop(op, two_d).closed_loop.A))
     ref = np.linalg.eigvals(_closed_sampled(op, two_d))
     for p in ref[np.abs(ref) > 0.5]:
         assert np.min(np.abs(z - p)) < 1e-6 * abs(p)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="clutch_loop of a sampled controller measuring two speeds: the two measured paths are "
-    "summed as separate realisations (meas + Pk, python-control), two copies of the plant; "
-    "closed_loop keeps the second copy's unstable pole z = 1.0021 (the interconnection's "
-    "spectral radius is 0.99947), and L (the transfer function of _tf_min) is off by a "
-    "relative error of about 1 at 0.3 and 2 rad/s (the interconnection's poles are among "
-    "closed_loop's: test_a_measurement_of_several_speeds_sums_their_paths)",
-)
 def test_a_sampled_loop_measuring_two_speeds_has_the_interconnections_gain() -> None:
     op = _slip(P_MU)
     two_d = dataclasses.replace(
