@@ -180,3 +180,6 @@ def test_the_linear_limit_search_range_scales_with_the_start() -> None:
     cert = largest_sector(G3 * (60.0 / 7e8), (0.0, 2.0), rtol=1e-2)
     assert cert.linear_limit == pytest.approx(7e8, rel=1e-6)
     assert cert.feasible and 2.0 < cert.certified_end < 7e8
+    # the message gives the certified end as a share of the linear limit
+    share = cert.certified_end / cert.linear_limit
+    assert f"linear (Hurwitz) limit of that end: 7e+08 ({share:.1%} of it)." in cert.message
