@@ -183,3 +183,44 @@ def test_the_linear_limit_search_range_scales_with_the_start() -> None:
     # the message gives the certified end as a share of the linear limit
     share = cert.certified_end / cert.linear_limit
     assert f"linear (Hurwitz) limit of that end: 7e+08 ({share:.1%} of it)." in cert.message
+
+
+def test_rank_one_factors_of_the_friction_slope() -> None:
+    """_rank_one splits dA = b c' (the friction slope's effect): for [[2, 0], [0, 0]] (singular
+    values 2 and exactly 0) the factors multiply back to it; a zero matrix (no slip coupling)
+    and a rank-two one are errors naming the reason."""
+    from drivetrain_ctrl.design.certificates import _rank_one
+
+    dA = np.array([[2.0, 0.0], [0.0, 0.0]])
+    b, c = _rank_one(dA, "x")
+    assert b.shape == (2, 1) and c.shape == (1, 2)
+    assert b @ c == pytest.approx(dA, abs=1e-15)
+    with pytest.raises(ValueError, match="does not enter the loop"):
+        _rank_one(np.zeros((2, 2)), "x")
+    with pytest.raises(ValueError, match="not rank one"):
+        _rank_one(np.eye(2), "x")
+
+
+def test_the_lure_system_of_the_slip_loop_has_no_direct_feedthrough_of_friction() -> None:
+    """Law (6) on the slip loop as a two-channel Lur'e system (friction slope, saturation): the
+    slip is a state, so its output has no direct term from either input, and the friction
+    torque reaches the controller's output only through the plant: D = [[0, 0], [0, d]] with d
+    the controller-plant feedthrough (0 for this strictly proper plant)."""
+    from drivetrain_ctrl import default_params, load_controller, reduced_model
+    from drivetrain_ctrl.core.signals import constant
+    from drivetrain_ctrl.core.units import rpm_to_rad_s
+    from drivetrain_ctrl.design.certificates import _friction_lure
+    from drivetrain_ctrl.linear import slip_operating_point
+
+    p = default_params()
+    op = slip_operating_point(
+        reduced_model(p),
+        omega_engine=rpm_to_rad_s(1600),
+        omega_driven=50.0,
+        x_c=0.07,
+        throttle=0.6,
+    )
+    ctl = load_controller("paper").build(p, reference=constant(rpm_to_rad_s(1600)))
+    G, k13 = _friction_lure(op, ctl)
+    assert (G.ninputs, G.noutputs) == (2, 2) and k13 > 0
+    assert np.array_equal(np.asarray(G.D), np.zeros((2, 2)))
