@@ -323,6 +323,12 @@ def test_a_sampled_judder_crossing_is_bracketed_by_the_zoh_interconnection(delay
 
     assert radius(jc.stable_side) < 1.0
     assert radius(jc.unstable_side) >= 1.0 - 1e-9
+    # the largest real part of ln(z)/dt at mu' = 0 (z = 0 left out: it is deep inside)
+    z0 = np.linalg.eigvals(_closed_sampled(op, ctrl, 0.0))
+    z0 = z0[np.abs(z0) > 0.0]
+    assert jc.spectral_abscissa_at_zero == pytest.approx(
+        float(np.max(np.log(np.abs(z0)))) / 0.01, rel=1e-6
+    )
     # the crossing pole ln(z)/dt of the outermost z at the unstable side
     z = np.linalg.eigvals(_closed_sampled(op, ctrl, jc.unstable_side))
     z = z[np.abs(z) > 0.0]
@@ -623,6 +629,13 @@ def test_the_analysis_results_are_frozen() -> None:
     ):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, name, None)
+
+
+def test_the_results_repr_leaves_out_the_operating_point() -> None:
+    op = _slip(P)
+    assert repr(L.clutch_loop(op, _law6())).startswith("ClutchLoop(controller_name='law6', ")
+    locked = L.locked_analysis(L.locked_trim(reduced_model(P), vehicle_speed_kmh=25.0))
+    assert repr(locked).startswith("LockedAnalysis(margins_reason='clutch locked: ")
 
 
 def test_a_sampled_crossing_reports_the_plant_modes_frequency() -> None:
