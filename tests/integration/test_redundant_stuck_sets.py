@@ -410,3 +410,28 @@ def test_four_bodies_three_dimensional_redundancy_matches_the_reference() -> Non
         names = [fi.name for fi in m.frictions]
         np.testing.assert_allclose([got[nm] for nm in names], ref, rtol=1e-7, atol=1e-9)
         np.testing.assert_allclose(m.guards(x, u, mode)[:nf], margin, rtol=1e-7, atol=1e-9)
+
+
+def test_stuck_torques_rows_is_the_single_point_kernel_exactly() -> None:
+    """``stuck_torques_rows`` (the series' no-NRT row loop) gives bit for bit what
+    ``stuck_torques`` gives sample by sample, in the modes of a run through a two-dimensional
+    redundancy, its break-away and the modes after it (unique stuck torques)."""
+    m = _three_held(1.0, 1.5, 1.0, 1.0, 1.0)
+    res = simulate(m, np.zeros(m.nx), {"T": sg.ramp(0.0, 3.0, 0.0, 3.0)}, t_end=3.0)
+    assert res.status == "ok"
+    D = m.data
+    seen = set()
+    for fm in {tuple(r) for r in res.fm}:
+        fm_a = np.array(fm, dtype=np.int64)
+        sel = np.flatnonzero(np.all(res.fm == fm_a, axis=1))
+        _P, Lam = K.mode_matrices(D, fm_a)
+        TAU = np.array([K.forces(D, res.x[k], res.u[k], fm_a, res.reg[k]) for k in sel])
+        rows = K.stuck_torques_rows(
+            D, np.ascontiguousarray(res.u[sel]), fm_a, np.ascontiguousarray(res.reg[sel]), Lam, TAU
+        )
+        for r, k in enumerate(sel):
+            _P, Lam1 = K.mode_matrices(D, fm_a)
+            one = K.stuck_torques(D, res.x[k], res.u[k], fm_a, res.reg[k], Lam1)
+            np.testing.assert_array_equal(rows[r], one)
+        seen.add(int(np.sum(fm_a == K.STUCK)))
+    assert 5 in seen and len(seen) > 1  # the redundant set and at least one other stuck set
