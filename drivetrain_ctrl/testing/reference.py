@@ -317,10 +317,18 @@ def max_min_stuck_torques(
     from scipy.optimize import linprog
 
     G = np.atleast_2d(np.asarray(G, dtype=float))
-    k = G.shape[0]
-    S = G @ minv @ G.T
-    rhs = G @ minv @ np.asarray(tau, dtype=float)
+    k, n = G.shape
+    minv = np.asarray(minv, dtype=float)
+    tau = np.asarray(tau, dtype=float)
     lim = np.asarray(limits, dtype=float)
+    for name, arr, shape in (("minv", minv, (n, n)), ("tau", tau, (n,)), ("limits", lim, (k,))):
+        if arr.shape != shape or not np.all(np.isfinite(arr)):
+            raise ValueError(
+                f"max_min_stuck_torques: {name} = {arr!r} must be finite with shape {shape} "
+                f"(G has shape {G.shape})"
+            )
+    S = G @ minv @ G.T
+    rhs = G @ minv @ tau
     A_eq = np.hstack([S, np.zeros((k, 1))])
     free = np.ones(k, dtype=bool)
     level = np.zeros(k)

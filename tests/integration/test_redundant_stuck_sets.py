@@ -435,3 +435,15 @@ def test_stuck_torques_rows_is_the_single_point_kernel_exactly() -> None:
             np.testing.assert_array_equal(rows[r], one)
         seen.add(int(np.sum(fm_a == K.STUCK)))
     assert 5 in seen and len(seen) > 1  # the redundant set and at least one other stuck set
+
+
+def test_reference_lp_rejects_bad_shapes_naming_the_field() -> None:
+    G = np.array([[1.0, 0.0], [1.0, -1.0], [0.0, 1.0]])
+    with pytest.raises(ValueError, match="limits"):
+        max_min_stuck_torques(np.eye(2), G, np.zeros(2), np.ones(2))
+    with pytest.raises(ValueError, match="tau"):
+        max_min_stuck_torques(np.eye(2), G, np.array([np.nan, 0.0]), np.ones(3))
+    lam, margin = max_min_stuck_torques(np.eye(2), G, np.array([1.5, 0.0]), np.ones(3))
+    # b0 loaded with 1.5: g0 and the path f01 -> g1 share it, 0.75 each (margin 0.25)
+    np.testing.assert_allclose(lam, [0.75, 0.75, 0.75], atol=1e-9)
+    assert margin == pytest.approx(0.25, abs=1e-9)
