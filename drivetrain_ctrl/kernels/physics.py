@@ -477,7 +477,10 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     group of element ``f``, -1 if its stuck torque is unique; ``Lam[nf + 1, j]`` the group of
     column ``j``) and the work space of the LP of :func:`stuck_torque` (rows ``nf + 2`` on,
     written by it). The mode-matrix cache of the simulator thus sizes that work space once per
-    mode, and the guard path, which receives ``Lam`` everywhere, allocates nothing.
+    mode, and the guard path, which receives ``Lam`` everywhere, allocates nothing. Since the
+    stuck torques write into it, one ``Lam`` must not serve two kernel calls at the same time
+    (the kernels hold the GIL, so threads of one process never do; a ``nogil`` kernel would
+    need a ``Lam`` per thread).
     """
     n = D.M.shape[0]
     nf = fm.shape[0]
