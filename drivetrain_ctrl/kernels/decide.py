@@ -28,6 +28,7 @@ from .physics import (
     _project_lam,
     capacity,
     forces_into,
+    lam_shape,
     mode_matrices,
     rel_speed,
     stuck_torque,
@@ -132,16 +133,19 @@ def _mm_insert(D, fm, mmask, mP, mPT, mL, mst):
 def _mm_alloc(D):
     """Empty mode-matrix cache ``(mmask, mP, mPT, mL, mst)`` (see :func:`_mm_find`): every stuck
     set fits for up to 10 friction elements. ``mL[s]`` is the extended stuck-torque matrix
-    (nf, n + nf) of :func:`~drivetrain_ctrl.kernels.physics.mode_matrices`: the least-norm map
-    and the basis of the self-balancing stuck torques of a statically indeterminate stuck set."""
+    (:func:`~drivetrain_ctrl.kernels.physics.lam_shape`) of
+    :func:`~drivetrain_ctrl.kernels.physics.mode_matrices`: the least-norm map, the basis of the
+    self-balancing stuck torques of a statically indeterminate stuck set, its redundancy groups
+    and the work space of their LP (so the guards allocate nothing)."""
     n = D.M.shape[0]
     nf = D.f_kind.shape[0]
     n_slots = 1 << min(nf, 10)
+    nr, nc = lam_shape(n, nf)
     return (
         np.zeros((n_slots, nf), dtype=np.int64),
         np.empty((n_slots, n, n)),
         np.empty((n_slots, n, n)),
-        np.empty((n_slots, nf, n + nf)),
+        np.empty((n_slots, nr, nc)),
         np.zeros(2, dtype=np.int64),
     )
 

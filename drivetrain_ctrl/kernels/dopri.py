@@ -34,6 +34,21 @@ E1, E3, E4, E5, E6, E7 = (
 
 
 @jit_inline
+def error_norm(err, y, y1, nxs, rtol, atol):
+    """Scaled RMS norm of a Dormand-Prince step's error estimate ``err`` over the first ``nxs``
+    components: ``sqrt(mean((err_i / (atol + rtol max(|y_i|, |y1_i|)))^2))`` (Hairer, Norsett and
+    Wanner, Solving ODEs I, Sect. II.4, eq. (4.11)); the step is accepted if it is <= 1 (a NaN
+    is not). ``y``, ``y1`` the step's start and end."""
+    en = 0.0
+    for i in range(nxs):
+        a = abs(y[i])
+        b = abs(y1[i])
+        r = err[i] / (atol + rtol * (a if a > b else b))
+        en += r * r
+    return np.sqrt(en / nxs)
+
+
+@jit_inline
 def full_rhs(D, S, ua, ub, t, t_ref, y, fm, reg, PT, nx, energy, u, tau, dy, Cd, cs, sv):
     """Derivative of the augmented state ``y = [x, controller states, W_in, E_diss...]``.
 

@@ -39,7 +39,15 @@ from .decide import (
     _mm_insert,
     _project_cached,
 )
-from .dopri import _dense_row, _dense_value, dense_coeffs, dense_eval, dp5_step, full_rhs_call
+from .dopri import (
+    _dense_row,
+    _dense_value,
+    dense_coeffs,
+    dense_eval,
+    dp5_step,
+    error_norm,
+    full_rhs_call,
+)
 from .physics import SLIP_NEG, SLIP_POS, guards_given_forces, guards_into, n_guards, rel_speed
 from .stability import _stab_lookup
 
@@ -361,13 +369,7 @@ def _reintegrate(
                 dy, yt, yr, err, Cd, cs, svw,
             )  # fmt: skip
             nfev += 6
-            en = 0.0
-            for i in range(nxs):
-                a = abs(ya[i])
-                b = abs(yr[i])
-                r = err[i] / (atol + rtol * (a if a > b else b))
-                en += r * r
-            if not (np.sqrt(en / nxs) <= 1.0):
+            if not (error_norm(err, ya, yr, nxs, rtol, atol) <= 1.0):
                 ok = False
                 break
             for i in range(n):

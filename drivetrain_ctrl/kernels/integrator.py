@@ -45,7 +45,7 @@ from .controller import (
     set_interval,
 )
 from .decide import DM_TOO_MANY, _dm_work, _mm_alloc, _mm_insert
-from .dopri import dense_coeffs, dense_eval, dp5_step, full_rhs_call
+from .dopri import dense_coeffs, dense_eval, dp5_step, error_norm, full_rhs_call
 from .events import (
     MAX_DIP_RETAKES,
     _decide_fast,
@@ -283,13 +283,7 @@ def _advance(
             svw,
         )
         nfev += 6
-        en = 0.0
-        for i in range(nxs):
-            a = abs(y[i])
-            b = abs(y1[i])
-            r = err[i] / (atol + rtol * (a if a > b else b))
-            en += r * r
-        en = np.sqrt(en / nxs)
+        en = error_norm(err, y, y1, nxs, rtol, atol)
         if not (en <= 1.0):
             n_rej += 1
             fac = 0.9 * en ** (-0.2) if en == en else 0.2

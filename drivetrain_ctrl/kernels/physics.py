@@ -442,12 +442,27 @@ def _null_basis(G: F64) -> F64:
     return N
 
 
+# Rows of the extended stuck-torque matrix after the nf element rows (offsets from nf), see
+# mode_matrices: the redundancy groups, then the work space of the max-min LP (_group_optimum).
+_R_EGROUP = 0  # [f]: group of stuck element f (its smallest null-space column), -1 none
+_R_CGROUP = 1  # [j]: group of null-space column j, -1 unused
+_R_MEMO = 2  # [valid, group, m*] of the last LP solved
+_R_MA = 3  # [i]: its least-norm torque lam0 of the group's i-th element
+_R_MC = 4  # [i]: its static capacity
+_R_Z = 5  # [j]: its optimal self-balancing torque along column j
+_R_LEVEL = 6  # [i]: margin at which element i is held (leximin stages), NaN while free
+_R_BASIS = 7  # [r]: basic variable of tableau row r
+_R_ELEM = 8  # [i]: the group's elements
+_R_COL = 9  # [r]: the group's columns
+_R_TAB = 10  # simplex tableau: up to nf + 1 rows
+
+
 @jit
 def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
-    """``P`` (n, n) and the extended stuck-torque matrix ``Lam`` (nf, n + nf) of friction modes
-    ``fm``: accelerations ``P tau``; ``Lam[:, :n] tau`` the least-norm stuck torques;
-    ``Lam[:, n:]`` a basis ``N`` of the self-balancing stuck torques (zero columns beyond its
-    dimension ``d``; ``d = 0`` unless the stuck set is statically indeterminate).
+    """``P`` (n, n) and the extended stuck-torque matrix ``Lam`` of friction modes ``fm``:
+    accelerations ``P tau``; ``Lam[:nf, :n] tau`` the least-norm stuck torques;
+    ``Lam[:nf, n:n + nf]`` a basis ``N`` of the self-balancing stuck torques (zero columns beyond
+    its dimension ``d``; ``d = 0`` unless the stuck set is statically indeterminate).
 
     With the constraint rows ``G`` of the stuck elements and ``S = G M^-1 G^T``:
     ``Lam0 = S^+ G M^-1`` and ``P = M^-1 - M^-1 G^T Lam0`` (the paper's transformation T,
@@ -456,6 +471,16 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     elements carry is chosen by :func:`stuck_torque` (the distribution with the largest smallest
     capacity margin). Read the stuck torques through :func:`stuck_torque` /
     :func:`stuck_torques`, never as ``Lam @ tau``.
+
+    The rows after the ``nf`` element rows (shape :func:`lam_shape`) hold the redundancy groups
+    (the connected sets of stuck elements coupled through null-space columns; ``Lam[nf, f]`` the
+    group of element ``f``, -1 if its stuck torque is unique; ``Lam[nf + 1, j]`` the group of
+    column ``j``) and the work space of the LP of :func:`stuck_torque` (rows ``nf + 2`` on,
+    written by it). The mode-matrix cache of the simulator thus sizes that work space once per
+    mode, and the guard path, which receives ``Lam`` everywhere, allocates nothing. Since the
+    stuck torques write into it, one ``Lam`` must not serve two kernel calls at the same time
+    (the kernels hold the GIL, so threads of one process never do; a ``nogil`` kernel would
+    need a ``Lam`` per thread).
     """
     n = D.M.shape[0]
     nf = fm.shape[0]
@@ -464,7 +489,11 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
         if fm[f] == STUCK:
             which[f] = 1
     Minv = np.diag(1.0 / D.M)
-    Lam = np.zeros((nf, n + nf))
+    nr, nc = lam_shape(n, nf)
+    Lam = np.zeros((nr, nc))
+    for f in range(nf):
+        Lam[nf + _R_EGROUP, f] = -1.0
+        Lam[nf + _R_CGROUP, f] = -1.0
     G = constraint_rows(D, fm, which)
     if G.shape[0] == 0:
         return Minv, Lam
@@ -472,37 +501,53 @@ def mode_matrices(D: ChainData, fm: I64) -> tuple[F64, F64]:
     L = _solve_small(GM @ G.T, GM)
     P = Minv - GM.T @ L
     N = _null_basis(G)
+    d = N.shape[1]
+    # redundancy groups: label propagation over the columns sharing a stuck element (labels
+    # only decrease: each connected set of columns ends with its smallest column index)
+    cg = np.arange(d)
+    changed = d > 1
+    while changed:
+        changed = False
+        for r in range(N.shape[0]):
+            lo = d
+            for j in range(d):
+                if N[r, j] != 0.0 and cg[j] < lo:
+                    lo = cg[j]
+            for j in range(d):
+                if N[r, j] != 0.0 and cg[j] != lo:
+                    cg[j] = lo
+                    changed = True
+    for j in range(d):
+        Lam[nf + _R_CGROUP, j] = cg[j]
     r = 0
     for f in range(nf):
         if which[f]:
             Lam[f, :n] = L[r, :]
-            for j in range(N.shape[1]):
+            for j in range(d):
                 Lam[f, n + j] = N[r, j]
+                if N[r, j] != 0.0:
+                    Lam[nf + _R_EGROUP, f] = cg[j]
             r += 1
     return P, Lam
 
 
 @jit_inline
-def _null_column(Lam, n, f):
-    """The null-space column (index into ``Lam[:, n:]``) in which stuck element ``f`` takes part:
-    -1 none (its stuck torque is unique), -2 more than one (coupled redundancy, dimension >= 2)."""
-    col = -1
-    for j in range(Lam.shape[1] - n):
-        if Lam[f, n + j] != 0.0:
-            if col != -1:
-                return -2
-            col = j
-    return col
+def lam_shape(n, nf):
+    """Shape of the extended stuck-torque matrix of :func:`mode_matrices` for ``n`` bodies and
+    ``nf`` friction elements: the element rows, the group rows, the LP's work space (a tableau
+    of at most ``k + 2 <= nf + 1`` rows and ``2 p + k + 2 <= 3 nf + 1`` columns for a group of
+    ``p <= nf`` elements and ``k <= nf - 1`` columns)."""
+    return 2 * nf + _R_TAB + 1, max(n + nf, 3 * nf + 2)
 
 
 @jit_inline
-def _column_exact(Lam, n, fm, j):
-    """True if every stuck element of null-space column ``j`` takes part in that column only:
-    then the column is a one-dimensional redundancy of its own, solved exactly."""
-    for h in range(fm.shape[0]):
-        if fm[h] == STUCK and Lam[h, n + j] != 0.0 and _null_column(Lam, n, h) != j:
-            return False
-    return True
+def _group_columns(Lam, nf, g):
+    """Number of null-space columns in redundancy group ``g``."""
+    k = 0
+    for j in range(nf):
+        if Lam[nf + _R_CGROUP, j] == g:
+            k += 1
+    return k
 
 
 @jit_inline
@@ -518,12 +563,14 @@ def _lam0(Lam, tau, n, f):
 def _column_optimum(D, u, fm, reg, Lam, tau, j):
     """``(z*, m*)``: the self-balancing torque ``z`` along null-space column ``j`` that maximises
     the smallest static capacity margin ``m(z) = min_h (static_h cap_h - |lam0_h + N_hj z|)`` of
-    the column's stuck elements, and that largest margin.
+    the column's stuck elements, and that largest margin (a redundancy group of one column).
 
     An LP in one variable; exact, no iteration, no allocation. Each element gives an increasing
     and a decreasing line of ``z``; by LP duality ``m*`` is the lowest of the intersection heights
     of an increasing with a decreasing line, and ``z*`` that intersection (unique, since every
-    line has a nonzero slope). ``m*`` is continuous in the state and the inputs.
+    line has a nonzero slope). ``m*`` is continuous in the state and the inputs. The same optimum
+    as :func:`_group_optimum` (whose leximin tie-break never acts here: ``z*`` is unique), in
+    closed form: kept for the common one-column case, without the tableau.
     """
     n = D.M.shape[0]
     nf = fm.shape[0]
@@ -554,6 +601,193 @@ def _column_optimum(D, u, fm, reg, Lam, tau, j):
 
 
 @jit_inline
+def _pivot(Lam, T0, B, R, C, pr, pc):
+    """Simplex pivot of the tableau (rows ``T0 .. T0 + R``, the last the reduced costs; columns
+    ``0 .. C``, the last the right-hand side) on row ``pr``, column ``pc``."""
+    piv = Lam[T0 + pr, pc]
+    for q in range(C + 1):
+        Lam[T0 + pr, q] /= piv
+    for r in range(R + 1):
+        if r == pr:
+            continue
+        fct = Lam[T0 + r, pc]
+        if fct != 0.0:
+            for q in range(C + 1):
+                Lam[T0 + r, q] -= fct * Lam[T0 + pr, q]
+            Lam[T0 + r, pc] = 0.0
+            if r < R and Lam[T0 + r, C] < 0.0:  # round-off below the basic level 0
+                Lam[T0 + r, C] = 0.0
+    Lam[B, pr] = pc
+
+
+@jit_inline
+def _simplex(Lam, T0, B, R, ny, C, tol):
+    """Primal simplex (Bland's rule: no cycling) on the tableau of :func:`_pivot`, entering only
+    the first ``ny`` columns, until no reduced cost is below ``-tol``."""
+    for _it in range(50 * (R + ny) + 50):
+        e = -1
+        for q in range(ny):
+            if Lam[T0 + R, q] < -tol:
+                e = q
+                break
+        if e < 0:
+            return
+        pr = -1
+        best = 0.0
+        for r in range(R):
+            a = Lam[T0 + r, e]
+            if a > 1e-12:
+                ratio = Lam[T0 + r, C] / a
+                if pr < 0 or ratio < best or (ratio == best and Lam[B, r] < Lam[B, pr]):
+                    pr = r
+                    best = ratio
+        if pr < 0:  # unbounded: not for these LPs (their primal is feasible)
+            return
+        _pivot(Lam, T0, B, R, C, pr, e)
+
+
+@jit_inline
+def _lp_cost(Lam, nf, q):
+    """Cost of dual variable ``q`` (element ``q // 2``, sign + for even ``q``): the right-hand
+    side ``c_i - level_i -+ a_i`` of its primal constraint (level 0 while the element is free)."""
+    i = q // 2
+    lev = Lam[nf + _R_LEVEL, i]
+    c = Lam[nf + _R_MC, i] - (0.0 if np.isnan(lev) else lev)
+    return c - Lam[nf + _R_MA, i] if q % 2 == 0 else c + Lam[nf + _R_MA, i]
+
+
+@jit_inline
+def _lp_stage(Lam, n, nf, p, k):
+    """One stage of the max-min LP of :func:`_group_optimum`: ``max t`` over ``(z, t)`` with
+    ``|a_i + N_i z| <= c_i - t`` for the free elements and ``<= c_i - level_i`` for the held ones,
+    solved as its dual (standard form: ``min b^T y``, ``A^T y = e_(k+1)``, ``y >= 0``, one ``y``
+    per constraint) by the two-phase simplex; ``(z, t)`` are the dual's simplex multipliers.
+    Writes ``z`` into the ``_R_Z`` row, holds the free elements whose dual weight is positive
+    (binding at every optimum, by complementary slackness) at level ``t``; returns ``t``."""
+    T0 = nf + _R_TAB
+    B = nf + _R_BASIS
+    R = k + 1
+    ny = 2 * p
+    C = ny + R
+    for r in range(R + 1):
+        for q in range(C + 1):
+            Lam[T0 + r, q] = 0.0
+    for i in range(p):
+        f = int(Lam[nf + _R_ELEM, i])
+        for r in range(k):
+            v = Lam[f, n + int(Lam[nf + _R_COL, r])]
+            Lam[T0 + r, 2 * i] = v
+            Lam[T0 + r, 2 * i + 1] = -v
+        if np.isnan(Lam[nf + _R_LEVEL, i]):
+            Lam[T0 + k, 2 * i] = 1.0
+            Lam[T0 + k, 2 * i + 1] = 1.0
+    for r in range(R):
+        Lam[T0 + r, ny + r] = 1.0
+        Lam[B, r] = ny + r
+    Lam[T0 + k, C] = 1.0
+    # phase 1: minimise the sum of the artificial variables (a feasible y exists: any free
+    # element's two constraints with weights 1/2)
+    for q in range(ny):
+        s = 0.0
+        for r in range(R):
+            s += Lam[T0 + r, q]
+        Lam[T0 + R, q] = -s
+    Lam[T0 + R, C] = -1.0
+    _simplex(Lam, T0, B, R, ny, C, 1e-12)
+    for r in range(R):  # artificials left in the basis (at level 0) are pivoted out
+        if Lam[B, r] >= ny:
+            best = -1
+            big = 1e-9
+            for q in range(ny):
+                if abs(Lam[T0 + r, q]) > big:
+                    big = abs(Lam[T0 + r, q])
+                    best = q
+            if best >= 0:
+                _pivot(Lam, T0, B, R, C, r, best)
+    # phase 2: the costs b; reduced costs of every column (artificials: cost 0, so that their
+    # reduced costs are minus the simplex multipliers)
+    bscale = 0.0
+    for q in range(ny):
+        bscale = max(bscale, abs(_lp_cost(Lam, nf, q)))
+    for q in range(C + 1):
+        s = 0.0 if q >= ny else _lp_cost(Lam, nf, q)
+        if q == C:
+            s = 0.0
+        for r in range(R):
+            bb = int(Lam[B, r])
+            if bb < ny:
+                s -= _lp_cost(Lam, nf, bb) * Lam[T0 + r, q]
+        Lam[T0 + R, q] = s
+    _simplex(Lam, T0, B, R, ny, C, 1e-13 * (1.0 + bscale))
+    for r in range(k):
+        Lam[nf + _R_Z, int(Lam[nf + _R_COL, r])] = -Lam[T0 + R, ny + r]
+    t = -Lam[T0 + R, ny + k]
+    for r in range(R):
+        bb = int(Lam[B, r])
+        if bb < ny and Lam[T0 + r, C] > 1e-11:
+            i = bb // 2
+            if np.isnan(Lam[nf + _R_LEVEL, i]):
+                Lam[nf + _R_LEVEL, i] = t
+    return t
+
+
+@jit_nonrt
+def _group_optimum(f_static, f_scale, f_uidx, f_table, t_s, t_o, n, u, fm, reg, Lam, tau, g):
+    """``m*`` of redundancy group ``g`` (two or more null-space columns ``N``, elements ``i``
+    with least-norm torques ``a_i`` and static capacities ``c_i``): the largest smallest margin
+    ``max_z min_i (c_i - |a_i + N_i z|)``; the optimal ``z`` into ``Lam``'s ``_R_Z`` row.
+
+    The LP ``max t`` s.t. ``|a_i + N_i z| <= c_i - t``, by the two-phase simplex on its dual
+    (:func:`_lp_stage`), exact up to round-off, in ``Lam``'s work space (no allocation). ``m*``
+    (the LP's value) is continuous in the state and the inputs. The optimal ``z`` of a
+    degenerate LP (ties: some torques free within the optimal margin) is made unique by the
+    leximin rule: the elements binding at every optimum are held at ``m*``, the smallest of the
+    others' margins is maximised, and so on, until every element is held (at most ``p``
+    stages); that point does not depend on the simplex's pivoting. The last group solved is
+    remembered with its data ``(a, c)``: the guards ask for every element of the group in turn.
+    Compiled once and called (not inlined into every guard), with the arrays of ``ChainData`` it
+    needs (``n`` the number of bodies).
+    """
+    nf = fm.shape[0]
+    p = 0
+    for f in range(nf):
+        if fm[f] == STUCK and Lam[nf + _R_EGROUP, f] == g:
+            Lam[nf + _R_ELEM, p] = f
+            p += 1
+    k = 0
+    for j in range(nf):
+        if Lam[nf + _R_CGROUP, j] == g:
+            Lam[nf + _R_COL, k] = j
+            k += 1
+    same = Lam[nf + _R_MEMO, 0] == 1.0 and Lam[nf + _R_MEMO, 1] == g
+    for i in range(p):
+        f = int(Lam[nf + _R_ELEM, i])
+        a = _lam0(Lam, tau, n, f)
+        c = f_static[f] * _cap(f_scale, f_uidx, f_table, t_s, t_o, f, u, reg)
+        if Lam[nf + _R_MA, i] != a or Lam[nf + _R_MC, i] != c:
+            same = False
+        Lam[nf + _R_MA, i] = a
+        Lam[nf + _R_MC, i] = c
+    if same:
+        return Lam[nf + _R_MEMO, 2]
+    for i in range(p):
+        Lam[nf + _R_LEVEL, i] = np.nan
+    mstar = _lp_stage(Lam, n, nf, p, k)
+    for _stage in range(p):
+        free = 0
+        for i in range(p):
+            if np.isnan(Lam[nf + _R_LEVEL, i]):
+                free += 1
+        if free == 0:
+            break
+        _lp_stage(Lam, n, nf, p, k)
+    Lam[nf + _R_MEMO, 0] = 1.0
+    Lam[nf + _R_MEMO, 1] = g
+    Lam[nf + _R_MEMO, 2] = mstar
+    return mstar
+
+
+@jit_inline
 def stuck_torque(D, u, fm, reg, Lam, tau, f):
     """``(lam, margin)`` of stuck element ``f`` from the forces ``tau`` at ``u`` (regions
     ``reg``) and the extended stuck-torque matrix ``Lam`` of :func:`mode_matrices`: the torque
@@ -562,21 +796,33 @@ def stuck_torque(D, u, fm, reg, Lam, tau, f):
     The one definition of the stuck torques (used by the guards, the mode decision's consistency
     test, :func:`stuck_torques`, :func:`powers`, :func:`coupling_torques` and, through
     :func:`stuck_torques_rows`, :mod:`drivetrain_ctrl.sim.series`). A unique stuck torque: the
-    least-norm one, margin ``static cap - |lam|``. In a statically indeterminate stuck set with a
-    one-dimensional redundancy (the common case: a body held by its own ground friction and,
-    through a stuck clutch, by another body's), the most feasible distribution
-    (:func:`_column_optimum`) and, for every element of the redundancy, the group's optimal
-    margin ``m*``: continuous in the state (an LP's optimal value), so that the event locator
-    finds the crossing, and negative exactly when no distribution within the capacities exists.
-    A coupled redundancy of dimension >= 2 (three or more grounded bodies joined by stuck
-    couplings) keeps the least-norm torques and per-element margins: a known limitation.
+    least-norm one, margin ``static cap - |lam|``. In a statically indeterminate stuck set, per
+    redundancy group (the stuck elements coupled through self-balancing torques; independent
+    groups stay independent): the distribution with the largest smallest capacity margin,
+    ties broken by the leximin rule, and for every element of the group the group's optimal
+    margin ``m*`` as its guard: continuous in the state (an LP's optimal value), so that the
+    event locator finds the crossing, and negative exactly when no distribution within the
+    capacities exists. A group of one column (a body held by its own ground friction and,
+    through a stuck clutch, by another body's) in closed form (:func:`_column_optimum`), a
+    coupled group of two or more (three grounded bodies joined by stuck couplings) by the
+    simplex (:func:`_group_optimum`).
     """
     n = D.M.shape[0]
+    nf = fm.shape[0]
     lam = _lam0(Lam, tau, n, f)
-    j = _null_column(Lam, n, f)
-    if j >= 0 and _column_exact(Lam, n, fm, j):
-        z, mstar = _column_optimum(D, u, fm, reg, Lam, tau, j)
-        return lam + Lam[f, n + j] * z, mstar
+    g = Lam[nf + _R_EGROUP, f]
+    if g >= 0.0:
+        j = int(g)
+        if _group_columns(Lam, nf, g) == 1:
+            z, mstar = _column_optimum(D, u, fm, reg, Lam, tau, j)
+            return lam + Lam[f, n + j] * z, mstar
+        mstar = _group_optimum(
+            D.f_static, D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, n, u, fm, reg, Lam, tau, g
+        )
+        for c in range(nf):
+            if Lam[nf + _R_CGROUP, c] == g:
+                lam += Lam[f, n + c] * Lam[nf + _R_Z, c]
+        return lam, mstar
     cap = _cap(D.f_scale, D.f_uidx, D.f_table, D.t_s, D.t_o, f, u, reg)
     return lam, D.f_static[f] * cap - abs(lam)
 
@@ -671,17 +917,29 @@ def stuck_torques_rows(D: ChainData, U: F64, fm: I64, REG: I64, Lam: F64, TAU: F
     """(N, nf) :func:`stuck_torque` of every stuck element at N samples in one friction mode
     ``fm`` (``Lam`` its :func:`mode_matrices`), from the inputs ``U`` (N, nu), regions ``REG``
     (N, nt) and forces ``TAU`` (N, n) of the samples; 0 for the elements not stuck."""
-    N = TAU.shape[0]
-    nf = fm.shape[0]
-    out = np.zeros((N, nf))
-    for i in range(N):
-        u = U[i]
-        reg = REG[i]
-        tau = TAU[i]
-        for f in range(nf):
-            if fm[f] == STUCK:
-                out[i, f] = stuck_torque(D, u, fm, reg, Lam, tau, f)[0]
+    out = np.empty((TAU.shape[0], fm.shape[0]))
+    _stuck_torques_rows_into(D, U, fm, REG, Lam, TAU, out)
     return out
+
+
+@jit_nonrt
+def _stuck_torques_rows_into(D, U, fm, REG, Lam, TAU, out):
+    """:func:`stuck_torques_rows` into ``out``, without reference counting (no per-row views'
+    bookkeeping): an element outside a redundancy group takes :func:`_lam0` directly (what
+    :func:`stuck_torque` does for it, without its margin), the others :func:`stuck_torque`."""
+    n = D.M.shape[0]
+    nf = fm.shape[0]
+    for i in range(TAU.shape[0]):
+        for f in range(nf):
+            if fm[f] != STUCK:
+                out[i, f] = 0.0
+            elif Lam[nf + _R_EGROUP, f] < 0.0:
+                lam = 0.0
+                for k in range(n):
+                    lam += Lam[f, k] * TAU[i, k]
+                out[i, f] = lam
+            else:
+                out[i, f] = stuck_torque(D, U[i], fm, REG[i], Lam, TAU[i], f)[0]
 
 
 @jit_inline

@@ -47,7 +47,12 @@ from numpy.typing import NDArray
 from ..core.units import GRAVITY
 from ..plant.params import DrivetrainParams
 
-__all__ = ["FRICTION_MODE_NAMES", "full_reference_rhs", "full_reference_stuck_torques"]
+__all__ = [
+    "FRICTION_MODE_NAMES",
+    "full_reference_rhs",
+    "full_reference_stuck_torques",
+    "max_min_stuck_torques",
+]
 
 F64 = NDArray[np.float64]
 
@@ -247,6 +252,16 @@ def _full_reference(
     if m_vehicle == "stuck":  # v = 0
         rows.append(("vehicle", [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]))
 
+    # static capacities of the stuck elements (static ratio times the capacity), same units
+    static = {
+        "clutch": clu.static_ratio * k12,
+        "damper_friction": dmp.static_ratio * dmp.k23,
+        "tyre": veh.tyre_static_ratio * k_w * R_p,
+        "engine": eng.static_ratio * eng.c1,
+        "brake": params.brake.static_ratio * brake_cap,
+        "vehicle": veh.rolling_static_ratio * k_v,
+    }
+
     M = np.diag([J1, J2, J3, J4, J_hub, J_tread, M_v])
     k = len(rows)
     if k == 0:
@@ -259,12 +274,17 @@ def _full_reference(
         kkt[:_N_BODIES, _N_BODIES:] = G.T
         kkt[_N_BODIES:, :_N_BODIES] = G
         b = np.concatenate([tau, np.zeros(k)])
-        if np.linalg.matrix_rank(G) < k:  # redundant constraints: least-squares multipliers
-            sol = np.linalg.lstsq(kkt, b, rcond=None)[0]
+        if np.linalg.matrix_rank(G) < k:
+            # redundant constraints (not reachable with the full model's topology, where every
+            # rigidly stuck group holds at most one ground element): the accelerations are
+            # unique, the stuck torques the max-min distribution within the static capacities
+            acc = np.linalg.lstsq(kkt, b, rcond=None)[0][:_N_BODIES]
+            limits = np.array([static[name] for name, _ in rows])
+            lam = max_min_stuck_torques(np.diag(1.0 / np.diag(M)), G, tau, limits)[0]
         else:
             sol = np.linalg.solve(kkt, b)
-        acc = sol[:_N_BODIES]
-        lam = sol[_N_BODIES:]
+            acc = sol[:_N_BODIES]
+            lam = sol[_N_BODIES:]
 
     # ---- state derivative ---------------------------------------------------------------------
     xdot = np.zeros(_N_STATES)
@@ -277,6 +297,93 @@ def _full_reference(
     xdot[12] = lag_dot  # lag_engine
     stuck = {name: float(lam[i]) for i, (name, _) in enumerate(rows)}
     return xdot, stuck
+
+
+def max_min_stuck_torques(
+    minv: F64, G: F64, tau: F64, limits: F64, *, tol: float = 1e-9
+) -> tuple[F64, float]:
+    """Stuck torques of a (possibly statically indeterminate) stuck set, by ``scipy``'s LP.
+
+    All multipliers ``lam`` with ``S lam = G M^-1 tau`` (``S = G M^-1 G^T``: every ``lam`` that
+    gives the constrained accelerations) are candidates; the one taken maximises the smallest
+    capacity margin ``limits_i - |lam_i|`` (the optimal margin is returned too), ties broken
+    lexicographically: the next smallest margin is maximised with the smallest ones held, and so
+    on (leximin), which makes ``lam`` unique. Each stage is one ``scipy.optimize.linprog``; which
+    margins a stage holds is decided by one more LP per margin (can it exceed the stage's
+    optimum?), so nothing here is shared with the kernels' simplex. ``minv`` (n, n) the inverse
+    mass matrix, ``G`` (k, n) the constraint rows, ``tau`` (n,) the forces, ``limits`` (k,) the
+    static capacities; returns ``(lam (k,), optimal smallest margin)``. Slow; for tests.
+    """
+    from scipy.optimize import linprog
+
+    G = np.atleast_2d(np.asarray(G, dtype=float))
+    k, n = G.shape
+    minv = np.asarray(minv, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    lim = np.asarray(limits, dtype=float)
+    for name, arr, shape in (("minv", minv, (n, n)), ("tau", tau, (n,)), ("limits", lim, (k,))):
+        if arr.shape != shape or not np.all(np.isfinite(arr)):
+            raise ValueError(
+                f"max_min_stuck_torques: {name} = {arr!r} must be finite with shape {shape} "
+                f"(G has shape {G.shape})"
+            )
+    S = G @ minv @ G.T
+    rhs = G @ minv @ tau
+    A_eq = np.hstack([S, np.zeros((k, 1))])
+    free = np.ones(k, dtype=bool)
+    level = np.zeros(k)
+    first: float | None = None
+    lam = np.zeros(k)
+
+    def solve(obj: int | None, t_min: float | None) -> tuple[F64, float]:
+        # variables (lam, t): maximise t (obj None) or the margin of element obj; the free
+        # margins >= t (or >= t_min), the held ones >= their level
+        rows, b = [], []
+        for i in range(k):
+            for s in (1.0, -1.0):
+                row = np.zeros(k + 1)
+                row[i] = s
+                if free[i] and (obj is None or i == obj):
+                    row[-1] = 1.0
+                    b.append(lim[i])
+                elif free[i]:
+                    assert t_min is not None
+                    b.append(lim[i] - t_min)
+                else:
+                    b.append(lim[i] - level[i])
+                rows.append(row)
+        c = np.zeros(k + 1)
+        c[-1] = -1.0
+        sol = linprog(
+            c,
+            A_ub=np.array(rows),
+            b_ub=np.array(b),
+            A_eq=A_eq,
+            b_eq=rhs,
+            bounds=[(None, None)] * (k + 1),
+            method="highs",
+        )
+        if sol.status != 0:
+            raise RuntimeError(f"linprog: {sol.message}")
+        return sol.x[:k], float(sol.x[-1])
+
+    while np.any(free):
+        lam, t = solve(None, None)
+        if first is None:
+            first = t
+        held = []
+        for i in np.flatnonzero(free):
+            _lam_i, best = solve(int(i), t)
+            if best <= t + tol * (1.0 + abs(t)):
+                held.append(i)
+        if not held:  # round-off: hold them all
+            held = list(np.flatnonzero(free))
+        for i in held:
+            free[i] = False
+            level[i] = t
+    # the last stage's optimal set is a single point once every margin is held: its lam
+    assert first is not None
+    return lam, first
 
 
 def full_reference_rhs(
