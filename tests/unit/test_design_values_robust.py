@@ -149,3 +149,20 @@ def test_an_unbounded_problem_is_declared_at_a_millionfold_growth_of_ki() -> Non
         robust_pi(1 / (s + 1), ms=1.4, start=(0.1, 0.01), omega=W0)
     m = re.search(r"from 0\.01 to ([0-9.e+]+),", str(e.value))
     assert m is not None and 1e4 < float(m.group(1)) <= 2.001e4
+
+
+def test_the_automatic_start_gives_up_after_25_unstable_candidates() -> None:
+    """1/((s - 0.5)(s + 2)), open-loop unstable: the largest-ki members of the start family that
+    meet |S| <= 2 on the grid do not stabilise it, and the search stops after 25 of them with
+    the advice to give a start. A start from a stabilising design works: with kp = 3, ki = 0.1
+    the closed loop's characteristic polynomial s^3 + 1.5 s^2 + (kp - 1) s + ki is Hurwitz
+    (Routh: 1.5 (kp - 1) = 3 > ki), and the tuner keeps it stable while raising ki."""
+    from drivetrain_ctrl.design.robust import InfeasibleSpecError
+
+    P = 1 / ((s - 0.5) * (s + 2))
+    with pytest.raises(InfeasibleSpecError, match="needs start=\\(kp, ki\\) from a stabilising"):
+        robust_pi(P, ms=2.0)
+    r = robust_pi(P, ms=2.0, start=(3.0, 0.1))
+    assert r.start_source == "given" and r.ki > 0.1 and r.stable is True
+    cl = control.feedback(r.controller * P, 1)
+    assert np.all(np.real(control.poles(cl)) < 0)
