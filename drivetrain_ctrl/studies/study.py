@@ -486,8 +486,13 @@ class Study:
             where = f"parameters.{prm.name!r}"
             if prm.name.startswith(CONTROLLER_PREFIX):
                 gain = prm.name.removeprefix(CONTROLLER_PREFIX)
-                names = [f.name for f in dataclasses.fields(ControllerSpec)]
-                if gain not in names or gain in ("name", "law", "design"):
+                fixed = ("name", "law", "design")  # what a controller is, not a number to vary
+                if gain in fixed:
+                    raise StudyError(
+                        f"{where}: the controller's {gain} cannot be a study parameter"
+                    )
+                names = [f.name for f in dataclasses.fields(ControllerSpec) if f.name not in fixed]
+                if gain not in names:
                     raise StudyError(
                         f"{where}: unknown controller setting {gain!r}{did_you_mean(gain, names)}"
                     )
