@@ -103,9 +103,10 @@ class UnboundedSpecError(ValueError):
 
 
 class InfeasibleSpecError(ValueError):
-    """The specification admits no controller of the structure that the tuner can start from:
-    no member of the start family (or the given ``start``) stabilises every plant and meets every
-    bound. The message names the plant, the bound and the frequency that fail."""
+    """The tuner found no start: the given ``start`` fails, or none of the start family's
+    candidates that meet every bound (tried largest ``ki`` first, at most 25 of them) stabilises
+    every plant; a stabilising member beyond those 25 is not searched for (give ``start``). The
+    message names the plant, the bound and the frequency that fail."""
 
 
 @dataclass(frozen=True)
@@ -750,7 +751,7 @@ def _find_start(
             return th, "auto"
         unstable[bad] = unstable.get(bad, 0) + 1
         tried += 1
-        if tried >= 25:
+        if tried >= 25:  # the documented cap (InfeasibleSpecError)
             break
     if not ok.any():
         i = int(np.argmax(worst))
