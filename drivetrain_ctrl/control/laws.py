@@ -739,16 +739,23 @@ def _slip_plant_polys(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Numerator and denominator of :func:`slip_loop`'s plant ``|k13'(x_r0)| A(s)/(J_1 s + b_1)``
     (:func:`law6_loop_closed_form` with unit gain)."""
+    return _law6_loop_polys(**_slip_plant_args(spec, params))
+
+
+def _slip_plant_args(spec: ControllerSpec, params: DrivetrainParams) -> dict[str, Any]:
+    """The arguments of law (6)'s loop with unit gain that make :func:`slip_loop`'s plant:
+    ``k13'(x_r0)`` the clutch element's capacity slope (at a knot, the piece towards opening),
+    a constant friction coefficient, the engine's ``J_1`` and ``b_1`` and the actuator."""
     slope = abs(clutch_friction(params).capacity_slope(spec.offset_x_r0, side="right"))
     act = params.actuator
-    return _law6_loop_polys(
-        k_r=1.0,
-        dk13_dxc=slope,
-        mu=1.0,
-        J1=params.engine.J1,
-        b1_eff=params.engine.b1,
-        actuator=Actuator(act.omega_a, act.delta_a),
-    )
+    return {
+        "k_r": 1.0,
+        "dk13_dxc": slope,
+        "mu": 1.0,
+        "J1": params.engine.J1,
+        "b1_eff": params.engine.b1,
+        "actuator": Actuator(act.omega_a, act.delta_a),
+    }
 
 
 def _controller_polys(spec: ControllerSpec) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -780,19 +787,8 @@ def slip_loop(spec: ControllerSpec, params: DrivetrainParams) -> control.Transfe
     the linear-analysis module gives the full picture (slip-dependent mu, driveline coupling).
     """
 
-    x0 = spec.offset_x_r0
-    # k13'(x_r0): the clutch element's capacity slope (at a knot, the piece towards opening)
-    slope = abs(clutch_friction(params).capacity_slope(x0, side="right"))
-    act = params.actuator
     # the plant |k13'| A(s) / (J_1 s + b_1): law (6)'s loop with unit gain, the controller apart
-    plant = law6_loop_closed_form(
-        k_r=1.0,
-        dk13_dxc=slope,
-        mu=1.0,
-        J1=params.engine.J1,
-        b1_eff=params.engine.b1,
-        actuator=Actuator(act.omega_a, act.delta_a),
-    )
+    plant = law6_loop_closed_form(**_slip_plant_args(spec, params))
     C = control.tf(spec.lti())
     ts = spec.sample_period_s
     if ts is None:

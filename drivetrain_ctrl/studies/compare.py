@@ -479,26 +479,18 @@ def compare_case(
         out.update(status="failed", error=f"{type(exc).__name__}: {exc}")
         return out
     horizon = float(t_end if t_end is not None else scenario.t_end)
-    if controller is None:
-        out.update(
-            status=str(run.metrics.get("status")),
-            error=None,
-            horizon_s=horizon,
-            metrics=run.metrics,
-            series=_series(run, horizon, n_series),
-        )
-        return out
-    lin = _linear(run, bode, certificate)
-    t_op = lin["slip"]["operating_point"]["t_s"] if lin["slip"] is not None else None
     out.update(
         status=str(run.metrics.get("status")),
         error=None,
         horizon_s=horizon,
         metrics=run.metrics,
         series=_series(run, horizon, n_series),
-        linear=lin,
-        observed=_observed(run, t_op),
     )
+    if controller is None:  # the open loop has no clutch loop to analyse
+        return out
+    lin = _linear(run, bode, certificate)
+    t_op = lin["slip"]["operating_point"]["t_s"] if lin["slip"] is not None else None
+    out.update(linear=lin, observed=_observed(run, t_op))
     return out
 
 
