@@ -1,0 +1,217 @@
+"""Values of :mod:`drivetrain_ctrl.studies.runner` that its other tests leave open (issue 22
+item 4, mutation testing): the row helpers, the cluster options, the chunk names and sizes (the
+defaults docs/studies.md states), the study folder's ``study.json``, the timing of
+``dask_client`` and the progress bar's counts.
+
+The expected values are written out here (numbers, a SHA-1 of the keys, the JSON text), not
+taken from the runner's helpers. The runs use an in-process Dask client and a stand-in for
+``run_case`` that returns records at once."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import cloudpickle
+import pytest
+
+from drivetrain_ctrl.studies import runner
+from drivetrain_ctrl.studies.case import Case
+from drivetrain_ctrl.studies.runner import (
+    _as_number,
+    _as_text,
+    _chunk_name,
+    _ChunkSizer,
+    check_cluster_options,
+    dask_client,
+    read_results,
+    run_chunk,
+    run_study,
+)
+from drivetrain_ctrl.studies.study import Study, StudyError
+
+cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers need not import tests
+
+STUDY: dict[str, Any] = {
+    "study": {
+        "name": "fake",
+        "model": "reduced",
+        "controllers": ["paper", "pi"],
+        "scenarios": ["paper-start"],
+        "metrics": ["lockup_time_s"],
+        "criteria": ["lockup_time_s <= 2.0"],
+        "t_end": 2.5,
+    },
+    "sampling": {"method": "mc", "samples": 5, "seed": 2},
+    "parameters": {"vehicle.M_v": {"dist": "uniform", "low": 1000.0, "high": 2000.0}},
+}
+
+
+def _fake_run(case: Case) -> dict[str, Any]:
+    """A record at once: the samples of even index fail, the others lock up at M_v / 1000 s."""
+    sample = int(case.label[1:7])
+    if sample % 2 == 0:
+        return {"status": "failed", "error": "made up"}
+    return {"status": "ok", "lockup_time_s": case.overrides["vehicle.M_v"] / 1000.0}
+
+
+@pytest.fixture(scope="module")
+def local_client() -> Iterator[Any]:
+    """An in-process Dask client (threads), its HTTP server on an ephemeral loopback port."""
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(
+        n_workers=1,
+        threads_per_worker=1,
+        processes=False,
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+    )
+    client = Client(cluster)
+    yield client
+    client.close()
+    cluster.close()
+
+
+def test_numbers_and_texts_of_a_row() -> None:
+    assert math.isnan(_as_number(None)) and math.isnan(_as_number("x"))
+    assert math.isnan(_as_number(object()))
+    assert _as_number(True) == 1.0 and _as_number(False) == 0.0
+    assert _as_number(2.5) == 2.5 and _as_number(3) == 3.0 and _as_number("0.25") == 0.25
+    assert _as_text(None) is None
+    assert _as_text(["a", "b"]) == "a; b" and _as_text(("x",)) == "x"
+    assert _as_text(3) == "3" and _as_text("note") == "note"
+
+
+def test_a_metric_named_status_is_not_overwritten() -> None:
+    item = ("s000001|paper|paper-start", 1, "paper", "paper-start", {"vehicle.M_v": 1500.0})
+    case = Case(scenario="paper-start", controller="paper", model="reduced")
+
+    def rec(case: Case) -> dict[str, Any]:
+        return {"status": "t_max", "lockup_time_s": None, "notes": ["a", "b"]}
+
+    (row,) = run_chunk([item], [case], ("status", "lockup_time_s", "notes"), (), rec)
+    assert row["status"] == "t_max" and row["notes"] == "a; b"
+    assert math.isnan(row["lockup_time_s"]) and row["error"] is None
+    assert row["param:vehicle.M_v"] == 1500.0 and row["pass"] is False
+    assert "lin:Ms" not in row and "linear_note" not in row
+
+
+def test_items_and_cases_must_pair_up() -> None:
+    item: tuple[str, int, str, str, dict[str, float]] = (
+        "s000000|paper|paper-start",
+        0,
+        "paper",
+        "paper-start",
+        {},
+    )
+    case = Case(scenario="paper-start", controller="paper", model="reduced")
+    with pytest.raises(ValueError, match="zip"):
+        run_chunk([item, item], [case], (), (), _fake_run)
+
+
+def test_good_cluster_options_pass() -> None:
+    for kw in (
+        {"workers": 1},
+        {"workers": 2},
+        {"scheduler": "tcp://127.0.0.1:8786"},
+        {"scheduler": "tcp://127.0.0.1:8786", "workers": 2},
+        {"client": object()},
+        {},
+    ):
+        check_cluster_options(**kw)
+    with pytest.raises(StudyError, match="workers = 0"):
+        check_cluster_options(workers=0)
+    with pytest.raises(StudyError, match="scheduler = ' '"):
+        check_cluster_options(scheduler=" ")
+
+
+def test_the_local_workers_start_from_the_fork_server() -> None:
+    import multiprocessing
+
+    import dask
+
+    key = "distributed.worker.multiprocessing-method"
+    before = dask.config.get(key)
+    with runner._fork_server():
+        inside = dask.config.get(key)
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        assert inside == "forkserver"
+    assert dask.config.get(key) == before
+
+
+def test_a_chunk_file_is_named_after_the_sha1_of_its_keys() -> None:
+    keys = ["s000000|paper|paper-start", "s000000|pi|paper-start"]
+    digest = hashlib.sha1(b"s000000|paper|paper-start\ns000000|pi|paper-start").hexdigest()
+    assert _chunk_name(keys) == f"chunk-{digest[:16]}.parquet"
+    assert len(_chunk_name(["x"])) == len("chunk-") + 16 + len(".parquet")
+
+
+def test_the_chunk_sizes_add_up_to_the_runs() -> None:
+    s = _ChunkSizer(3, 10, 2)
+    assert [s.size() for _ in range(4)] == [3, 3, 3, 1]
+    one = _ChunkSizer(None, 1, 4)
+    assert one.size() == 1
+
+
+def test_the_default_chunk_sizes_are_the_documented_ones(monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/studies.md: first chunks of 4 runs, then the runs of about 2 s of one worker's
+    time, at most 1,024, at most the remaining runs over twice the workers."""
+    now = [10.0]
+    monkeypatch.setattr(runner.time, "perf_counter", lambda: now[0])
+    s = _ChunkSizer(None, 1_000_000, 2)
+    assert [s.size() for _ in range(3)] == [4, 4, 4]
+    now[0] += 0.5
+    s.finished(12)  # 12 runs by 2 workers in 0.5 s: 1/12 s of one worker per run
+    assert s.size() == 24  # 2 s / (1/12 s)
+    now[0] += 0.0
+    s.finished(100_000)  # very cheap now
+    assert s.size() == 1024
+    tail = _ChunkSizer(None, 50, 3)
+    tail.size()  # 4: 46 remain
+    now[0] += 1.0
+    tail.finished(1000)
+    assert tail.size() == 8  # ceil(46 / 6)
+
+
+def test_dask_client_times_its_start_and_its_end(local_client: Any) -> None:
+    timing: dict[str, float] = {}
+    with dask_client(local_client, timing=timing):
+        pass
+    assert 0.0 <= timing["shutdown_s"] < 60.0
+    assert 0.0 <= timing["startup_cluster_s"] <= timing["startup_s"] < 600.0
+    assert 0.0 <= timing["startup_warmup_s"] <= timing["startup_s"]
+    assert timing["startup_cluster_s"] + timing["startup_warmup_s"] == pytest.approx(
+        timing["startup_s"], abs=1e-3
+    )
+
+
+def test_a_run_writes_its_study_and_counts_rows(
+    tmp_path: Path, local_client: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    study = Study.from_dict(STUDY)
+    out = tmp_path / "o"
+    done = run_study(study, out=out, client=local_client, chunk_size=3, run=_fake_run)
+    # the folder's study.json: the digest and the study, as indented JSON
+    text = (out / "study.json").read_text()
+    want = {"digest": study.digest, "study": study.to_dict()}
+    assert text == json.dumps(want, indent=2, default=str) + "\n"
+    df = read_results(out)
+    n_failed = 3 * 2  # samples 0, 2, 4 under both controllers
+    assert done.rows == done.expected == done.computed == len(df) == 10
+    assert done.failed == n_failed == int((df["status"] == "failed").sum())
+    assert done.chunks == 4 and done.skipped == 0 and done.workers == 1
+    ok = df[df["status"] == "ok"]
+    assert list(ok["lockup_time_s"]) == [v / 1000.0 for v in ok["param:vehicle.M_v"]]
+    assert done.passed == int((ok["lockup_time_s"] <= 2.0).sum())
+    # the progress bar ends with every run done: nothing remaining, the failed ones counted
+    err = capsys.readouterr().err
+    assert re.findall(r"remaining=(\d+)", err)[-1] == "0"
+    assert re.findall(r"failed=(\d+)", err)[-1] == str(n_failed)
+    assert "10/10" in err
