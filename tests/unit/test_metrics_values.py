@@ -490,3 +490,51 @@ def test_rollback_is_the_largest_backward_displacement() -> None:
     dtf = flat.drivetrain(p, kind="full")
     mf = engagement_metrics(run_scenario(flat, dtf), dtf, start=flat.start_time)
     assert mf["rollback_m"] is not None and 0.0 <= mf["rollback_m"] < 1e-12  # round-off
+
+
+def test_a_single_contact_sample_on_each_side_is_one_crossing(runs: dict[str, Run]) -> None:
+    """The backlash's region column edited to the gap everywhere except one sample on each
+    contact side inside W: one crossing (the new side reached at the second sample)."""
+    r = runs["engage-ramp/reduced"]
+    res = r.res
+    k = next(i for i, ti in enumerate(res.model.tables) if ti.region_names is not None)
+    names = list(res.model.tables[k].region_names)
+    plus = next(i for i, n in enumerate(names) if n.endswith("+"))
+    minus = next(i for i, n in enumerate(names) if n.endswith("-"))
+    gap = next(i for i, n in enumerate(names) if not n.endswith(("+", "-")))
+    reg = res.reg.copy()
+    reg[:, k] = gap
+    t = res.t
+    i1 = int(np.flatnonzero(t > r.start + 0.1)[0])
+    i2 = int(np.flatnonzero(t > r.start + 0.2)[0])
+    reg[i1, k] = minus
+    reg[i2, k] = plus
+    m = engagement_metrics(dataclasses.replace(res, reg=reg), start=r.start)
+    assert m["n_backlash_crossings"] == 1
+    reg[i2, k] = minus  # both samples on one side: no crossing
+    m = engagement_metrics(dataclasses.replace(res, reg=reg), start=r.start)
+    assert m["n_backlash_crossings"] == 0
+
+
+def test_notes_name_a_stall_and_inconsistent_decisions(runs: dict[str, Run]) -> None:
+    """The stall note appears iff the engine stalled in W; the decisions note iff the run's
+    statistics count inconsistent decisions (a result without the count has none)."""
+    r = runs["paper-start/reduced"]
+    res = r.res
+    assert not any("stalled" in n for n in r.m["notes"])
+    f = [fi.name for fi in res.model.frictions].index("engine")
+    fm = res.fm.copy()
+    fm[int(np.flatnonzero(res.t > r.start + 0.1)[0]), f] = 0
+    m = engagement_metrics(dataclasses.replace(res, fm=fm), start=r.start)
+    assert m["engine_stalled"] is True
+    assert any("engine stalled" in n for n in m["notes"])
+
+    no_count = {k: v for k, v in res.stats.items() if k != "inconsistent_decisions"}
+    m = engagement_metrics(dataclasses.replace(res, stats=no_count), start=r.start)
+    assert m["inconsistent_decisions"] == 0
+    assert not any("mode decision" in n for n in m["notes"])
+    m = engagement_metrics(
+        dataclasses.replace(res, stats={**res.stats, "inconsistent_decisions": 3}), start=r.start
+    )
+    assert m["inconsistent_decisions"] == 3
+    assert any(n.startswith("3 mode decision(s)") for n in m["notes"])
