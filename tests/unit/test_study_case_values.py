@@ -182,3 +182,12 @@ def test_the_linear_note_keeps_the_margin_reasons_and_the_judder_tolerance() -> 
     out_f = linear_figures_at(op_f, full.controller, es_f, L_f, loop_margins(L_f))
     assert "numeric (judder_crossing, rtol 0.0001)" in out_f["linear_note"]
     assert "closed form" not in out_f["linear_note"]
+
+
+def test_a_controller_on_an_open_loop_scenario_is_named() -> None:
+    """The error names the ``controller`` field and its value, and says what to do instead."""
+    with pytest.raises(CaseError) as exc:
+        simulate_case(_ramp(controller="paper"))
+    msg = str(exc.value)
+    assert msg.startswith("controller = 'paper': scenario 'engage-ramp' is open loop")
+    assert "drop the controller or use a closed-loop scenario (paper-start)" in msg
