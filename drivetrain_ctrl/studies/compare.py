@@ -891,6 +891,10 @@ def compare(
     ):
         if not isinstance(flag, bool):
             raise CompareError(f"{name} = {flag!r}: must be True or False")
+    if not isinstance(params, str | Path | DrivetrainParams):
+        raise CompareError(
+            f"params = {params!r}: give a parameter set's name, a TOML file or a DrivetrainParams"
+        )
     try:
         p = params if isinstance(params, DrivetrainParams) else load_params(params)
     except FileNotFoundError as exc:

@@ -362,6 +362,9 @@ def test_split() -> None:
         ({"certificate": None}, "certificate = None: must be True or False"),
         ({"open_loop": "yes"}, "open_loop = 'yes': must be True or False"),
         ({"params": "/no/such/dir/params.toml"}, "file not found: /no/such/dir/params.toml"),
+        ({"params": 3.5}, "params = 3.5: give a parameter set's name, a TOML file or a"),
+        ({"params": None}, "params = None: give a parameter set's name"),
+        ({"params": "no-such-set"}, "params = 'no-such-set': unknown parameter set"),
         ({"scenarios": ["engage-ramp"], "controllers": "pi"}, "no valid scenario"),
     ],
 )
