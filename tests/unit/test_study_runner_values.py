@@ -215,3 +215,10 @@ def test_a_run_writes_its_study_and_counts_rows(
     assert re.findall(r"remaining=(\d+)", err)[-1] == "0"
     assert re.findall(r"failed=(\d+)", err)[-1] == str(n_failed)
     assert "10/10" in err
+
+
+def test_an_output_folder_that_is_not_a_path_is_named() -> None:
+    study = Study.from_dict(STUDY)
+    for bad, named in ((None, "out = None"), (True, "out = True"), (3, "out = 3")):
+        with pytest.raises(StudyError, match=f"{re.escape(named)}: give an output folder"):
+            run_study(study, out=bad, run=_fake_run)  # type: ignore[arg-type]
