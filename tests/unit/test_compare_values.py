@@ -820,3 +820,39 @@ def test_compare_case_closed_and_open(run: Any) -> None:
     assert (rec["controller"], rec["loop"], rec["status"]) == (None, "open", "ok")
     assert "linear" not in rec and "observed" not in rec
     assert rec["series"]["t_s"] == [0.0, 0.5, 1.0] and "omega_ref_rpm" not in rec["series"]
+
+
+# -- the Dask step ---------------------------------------------------------------------------------
+def _add(a: int, b: int, *, c: int = 0) -> int:
+    return a + b + c
+
+
+def test_run_all_gives_the_results_in_task_order_with_a_progress_bar(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """On a given client (one in-process worker): the results in the order of the tasks, the
+    number of workers, the run time within the elapsed time, and a progress bar counting the
+    tasks."""
+    from dask.distributed import Client
+
+    tasks: list[tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]] = [
+        (_add, (1, 2), {}),
+        (_add, (3, 4), {"c": 1}),
+        (_add, (0, 0), {}),
+    ]
+    with Client(
+        processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None
+    ) as client:
+        tic = time.perf_counter()
+        out, n, timing = cm._run_all(tasks, client=client, workers=None, progress=True)
+        elapsed = time.perf_counter() - tic
+        assert client.status == "running"  # a given client is left open
+    assert out == [3, 8, 0] and n == 1
+    assert 0 <= timing["startup_s"] and 0 <= timing["runs_s"] <= elapsed - timing["startup_s"]
+    err = capsys.readouterr().err
+    assert "3/3" in err and "6/3" not in err
+    with Client(
+        processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None
+    ) as client:
+        cm._run_all(tasks[:1], client=client, workers=None, progress=False)
+    assert "1/1" not in capsys.readouterr().err
