@@ -300,6 +300,17 @@ def test_idle_rpm_in_a_file_is_the_idle_throttle() -> None:
         d["initial"]["throttle"] = {"idle_rpm": bad}
         with pytest.raises(ScenarioError, match=r"initial.throttle.idle_rpm = .*> 0"):
             scenario_from_dict(d, params=P)
+    d["initial"]["throttle"] = {"idle_rpm": 0.5}  # any positive speed, even below 1 rpm
+    sc = scenario_from_dict(d, params=P)
+    assert sc.throttle0 == pytest.approx(idle_throttle(P, 0.5 * math.pi / 30.0), rel=1e-14)
+
+
+@pytest.mark.parametrize("ctl", [3.0, "paper", [1, 2]])
+def test_a_controller_that_is_not_a_table_is_named(ctl: object) -> None:
+    d = _d()
+    d["controller"] = ctl
+    with pytest.raises(ScenarioError, match=r"^controller: must be a table$"):
+        scenario_from_dict(d)
 
 
 def test_replace_keeps_the_checks() -> None:
