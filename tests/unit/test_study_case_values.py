@@ -191,3 +191,35 @@ def test_a_controller_on_an_open_loop_scenario_is_named() -> None:
     msg = str(exc.value)
     assert msg.startswith("controller = 'paper': scenario 'engage-ramp' is open loop")
     assert "drop the controller or use a closed-loop scenario (paper-start)" in msg
+
+
+def test_a_loop_that_is_not_one_of_the_loops_is_refused_when_the_case_is_made() -> None:
+    for bad in ("half", "Open", ""):
+        with pytest.raises(CaseError, match=f"loop = {bad!r}: must be one of"):
+            Case(scenario="paper-start", loop=bad)
+    assert Case(scenario="paper-start", loop="open").loop == "open"
+
+
+def test_a_table_override_and_the_judder_margin_of_a_falling_friction() -> None:
+    """A friction table as an override (a dict: not hashable, so not kept in the parameter
+    cache) reaches the run; with mu/mu0 falling at -0.001 s/rad the judder margin is
+    1 - mu'/mu'_crit of the record's own slope and threshold."""
+    table = {"x": [0.0, 500.0], "y": [1.0, 0.5]}
+    case = Case(
+        scenario="paper-start",
+        model="reduced",
+        controller="paper",
+        overrides={"clutch.mu_table": table},
+        linear=True,
+    )
+    with caching(True):
+        run = simulate_case(case)
+    assert run.drivetrain.params.clutch.mu_table.y[-1] == 0.5
+    lin = run.linear
+    assert lin is not None
+    mu, crit = lin["lin:mu_slope"], lin["lin:mu_slope_crit"]
+    assert mu == pytest.approx(-0.001, rel=1e-9)
+    assert crit is not None and crit < 0.0
+    assert lin["lin:judder_margin"] == 1.0 - mu / crit
+    flat = simulate_case(Case(scenario="paper-start", model="reduced", controller="paper"))
+    assert flat.drivetrain.params.clutch.mu_table.y[-1] == 1.0
