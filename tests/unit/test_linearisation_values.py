@@ -18,6 +18,7 @@ from drivetrain_ctrl.linear.linearisation import (
     ss_to_tf,
     trim_tf,
 )
+from drivetrain_ctrl.linear.operating_point import OperatingPoint
 
 # (s + 1)(s + 2) = s^2 + 3 s + 2 in companion form
 A2 = [[0.0, 1.0], [-2.0, -3.0]]
@@ -179,7 +180,7 @@ def test_each_visited_mode_is_linearised_in_the_middle_of_its_longest_interval()
         i = j + 1
     vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
     mids = sorted(0.5 * (a + b) for a, b in longest.values())
-    assert sorted(float(v.op.t) for v in vm) == pytest.approx(mids, rel=1e-12)
+    assert sorted(float(v.op.t or 0.0) for v in vm) == pytest.approx(mids, rel=1e-12)
 
 
 def test_a_mode_held_only_in_the_last_sample_interval_is_visited() -> None:
@@ -199,3 +200,95 @@ def test_a_mode_held_only_in_the_last_sample_interval_is_visited() -> None:
     vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
     assert sum(v.duration_s for v in vm) == pytest.approx(t[-1] - t[0], rel=1e-12)
     assert any("clutch=stuck" in v.label for v in vm)
+
+
+def _locked_op() -> OperatingPoint:
+    from drivetrain_ctrl.linear.operating_point import locked_trim
+    from drivetrain_ctrl.plant.drivetrain import reduced_model
+    from drivetrain_ctrl.plant.params import default_params
+
+    return locked_trim(reduced_model(default_params()), vehicle_speed_kmh=30.0, slope=0.03)
+
+
+def test_the_jacobians_of_an_operating_point_are_computed_once() -> None:
+    """An operating point is immutable: its Jacobians are kept and handed out again."""
+    from drivetrain_ctrl.linear.linearisation import linearisation_parts
+
+    op = _locked_op()
+    first = linearisation_parts(op)
+    assert linearisation_parts(op) is first
+    assert linearisation_parts(_locked_op()) is not first
+
+
+def test_engine_torque_and_vehicle_acceleration_output_rows() -> None:
+    """C_1 = K lag - b1 omega_1 - c1 (paper, Sec. II): its row is K on the lag state and -b1 on
+    the engine speed, no feedthrough; a_vehicle's row is the vehicle speed's row of A and B."""
+    from drivetrain_ctrl.linear.linearisation import linearise
+    from drivetrain_ctrl.plant.params import default_params
+
+    e = default_params().engine
+    op = _locked_op()
+    sys = linearise(op, outputs=["C_1", "a_vehicle"], reduce=False)
+    A, B, C, D = (np.asarray(m, dtype=float) for m in (sys.A, sys.B, sys.C, sys.D))
+    states = list(sys.state_labels)
+    want = np.zeros(len(states))
+    want[states.index("lag_engine")] = e.K
+    want[states.index("omega_engine")] = -e.b1
+    assert C[0] == pytest.approx(want, abs=1e-12 * e.K)
+    assert np.all(D[0] == 0.0)
+    iv = states.index("v_vehicle")
+    assert np.any(A[iv] != 0.0)
+    assert np.array_equal(C[1], A[iv]) and np.array_equal(D[1], B[iv])
+
+
+def test_trim_tf_keeps_a_zero_transfer_function() -> None:
+    """An input that reaches no output: the numerator stays one zero coefficient."""
+    sys = control.ss(A2, [[0.0], [0.0]], [[1.0, 0.0]], [[0.0]])
+    num, den = _coeffs(trim_tf(sys))
+    assert num.size >= 1 and np.all(num == 0.0)
+    assert den[0] != 0.0
+
+
+def test_visited_modes_per_key_durations_and_longest_intervals_full_model() -> None:
+    """On the full model's engage-ramp (backlash chatter: many short modes), each sample
+    interval [t_i, t_i+1] belongs to the mode of sample i; per mode the total time, and the
+    first of its longest maximal runs of intervals, whose middle is the operating point."""
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+    from drivetrain_ctrl.sim.run import run_scenario
+
+    sc = load_scenario("engage-ramp")
+    dtr = sc.drivetrain(default_params(), kind="full")
+    res = run_scenario(sc, dtr)
+    t = np.asarray(res.t)
+    fm, reg = np.asarray(res.fm).tolist(), np.asarray(res.reg).tolist()
+    keys = [(tuple(f), tuple(r)) for f, r in zip(fm, reg, strict=True)]
+    total: dict[object, float] = {}
+    best: dict[object, tuple[float, float]] = {}
+    run_start = 0
+    for i in range(len(t) - 1):
+        total[keys[i]] = total.get(keys[i], 0.0) + float(t[i + 1] - t[i])
+        last_of_run = i == len(t) - 2 or keys[i + 1] != keys[i]
+        if last_of_run:
+            t0, t1 = float(t[run_start]), float(t[i + 1])
+            b = best.get(keys[i])
+            if (b is None and t1 > t0) or (b is not None and t1 - t0 > b[1] - b[0]):
+                best[keys[i]] = (t0, t1)
+            run_start = i + 1
+    assert len(total) > 5
+    vm = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
+    got = {(tuple(v.op.mode.fm), tuple(v.op.mode.reg)): v for v in vm}
+    assert set(got) == {k for k in total if k in best}
+    for k, v in got.items():
+        assert v.duration_s == pytest.approx(total[k], rel=1e-12, abs=1e-15)
+        assert v.op.t == pytest.approx(0.5 * (best[k][0] + best[k][1]), rel=1e-12)
+
+
+def test_a_shuffle_mode_is_immutable_and_slotted() -> None:
+    import dataclasses
+
+    (m,) = _oscillatory(np.array([-3 + 4j, -3 - 4j]))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.real = 0.0  # type: ignore[misc]
+    assert not hasattr(m, "__dict__")
