@@ -278,3 +278,14 @@ def test_the_margins_of_a_delayed_loop_use_every_band_point_of_a_coarse_grid() -
 def test_disk_figures_reject_a_negative_or_nan_margin(alpha: float) -> None:
     with pytest.raises(ValueError, match="alpha = "):
         disk_figures(alpha)
+
+
+def test_a_delayed_loop_on_a_one_point_grid_has_no_crossovers() -> None:
+    # one band point: no crossover can be located, so no margin and no crossover (not an error)
+    p = Plant(control.tf([1.0], [1.0, 0.0]), delay=0.5)
+    c = check_loop(p, control.tf([1.0], [1.0]), grid=[1.0])
+    assert (c.gain_margin_db, c.phase_margin_deg, c.crossover_rad_s) == (None, None, None)
+    assert dict(c.reasons)["phase_margin_deg"] == "no gain crossover"
+    # |S(j1)| = 1 / |1 + e^{-j/2} / j| computed plainly
+    L1 = np.exp(-0.5j) / 1j
+    assert c.ms == pytest.approx(1.0 / abs(1.0 + L1), rel=1e-12)
