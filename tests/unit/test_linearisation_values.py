@@ -5,7 +5,9 @@ and the output rows of a linearisation against the model's own Jacobian
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import control
 import numpy as np
@@ -246,7 +248,7 @@ def test_trim_tf_keeps_a_zero_transfer_function() -> None:
     sys = control.ss(A2, [[0.0], [0.0]], [[1.0, 0.0]], [[0.0]])
     num, den = _coeffs(trim_tf(sys))
     assert num.size >= 1 and np.all(num == 0.0)
-    assert den[0] != 0.0
+    assert den.tolist() == [1.0]
 
 
 def test_visited_modes_per_key_durations_and_longest_intervals_full_model() -> None:
@@ -292,3 +294,53 @@ def test_a_shuffle_mode_is_immutable_and_slotted() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         m.real = 0.0  # type: ignore[misc]
     assert not hasattr(m, "__dict__")
+
+
+def _engage_ramp_reduced(t_end: float | None = None) -> tuple[Any, Any]:
+    from drivetrain_ctrl.plant.params import default_params
+    from drivetrain_ctrl.scenarios.scenario import load_scenario
+    from drivetrain_ctrl.sim.run import run_scenario
+
+    sc = load_scenario("engage-ramp")
+    dtr = sc.drivetrain(default_params(), kind="reduced")
+    return run_scenario(sc, dtr, t_end=t_end), dtr
+
+
+def test_a_run_in_one_mode_is_linearised_in_its_middle() -> None:
+    """Before the pedal moves the run holds one mode: one visited mode, the whole run long,
+    linearised at the run's middle (its last sample interval included)."""
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+
+    res, dtr = _engage_ramp_reduced(t_end=0.1)
+    t = np.asarray(res.t)
+    assert len({tuple(r) for r in np.asarray(res.fm).tolist()}) == 1
+    assert t.size > 3 and t[-1] > t[-2]
+    (v,) = linearise_visited_modes(res, drivetrain=dtr, min_duration=0.0)
+    assert v.duration_s == pytest.approx(t[-1] - t[0], rel=1e-14)
+    assert v.op.t == pytest.approx(0.5 * (t[0] + t[-1]), rel=1e-14)
+
+
+def test_a_mode_held_for_no_time_is_not_visited() -> None:
+    """An event is recorded as two samples about 1e-15 s apart; with the two made simultaneous
+    and a mode given only to the first of them (edited in), that mode is held for no time and
+    is not visited, even with ``min_duration = 0``."""
+    from drivetrain_ctrl.linear.linearisation import linearise_visited_modes
+
+    res, dtr = _engage_ramp_reduced()
+    t = np.asarray(res.t).copy()
+    i = int(np.flatnonzero(np.diff(t[:-1]) < 1e-12)[0])
+    t[i + 1] = t[i]
+    fm = np.asarray(res.fm).copy()
+    seen = {tuple(r) for r in fm.tolist()}
+    novel = next(
+        c
+        for c in ([a, b, *fm[i, 2:].tolist()] for a in (0, 1, 2, 3) for b in (0, 1, 2, 3))
+        if tuple(c) not in seen
+    )
+    fm[i] = novel
+    base = dataclasses.replace(res, t=t)
+    edited = dataclasses.replace(res, t=t, fm=fm)
+    want = linearise_visited_modes(base, drivetrain=dtr, min_duration=0.0)
+    got = linearise_visited_modes(edited, drivetrain=dtr, min_duration=0.0)
+    assert [v.label for v in got] == [v.label for v in want]
+    assert [v.duration_s for v in got] == pytest.approx([v.duration_s for v in want], rel=1e-12)
