@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import cloudpickle
+import pandas as pd
 import pytest
 
 from drivetrain_ctrl.studies import runner
@@ -34,7 +35,7 @@ from drivetrain_ctrl.studies.runner import (
     run_chunk,
     run_study,
 )
-from drivetrain_ctrl.studies.study import Study, StudyError
+from drivetrain_ctrl.studies.study import Study, StudyError, sample_table
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers need not import tests
 
@@ -210,6 +211,11 @@ def test_a_run_writes_its_study_and_counts_rows(
     ok = df[df["status"] == "ok"]
     assert list(ok["lockup_time_s"]) == [v / 1000.0 for v in ok["param:vehicle.M_v"]]
     assert done.passed == int((ok["lockup_time_s"] <= 2.0).sum())
+    assert 0.0 < done.wall_s < 600.0
+    # the folder's sample table: the study's samples, one row per sample
+    samples = pd.read_parquet(out / "samples.parquet")
+    pd.testing.assert_frame_equal(samples, sample_table(study))
+    assert list(samples.columns) == ["vehicle.M_v"] and len(samples) == 5
     # the progress bar ends with every run done: nothing remaining, the failed ones counted
     err = capsys.readouterr().err
     assert re.findall(r"remaining=(\d+)", err)[-1] == "0"
@@ -222,3 +228,61 @@ def test_an_output_folder_that_is_not_a_path_is_named() -> None:
     for bad, named in ((None, "out = None"), (True, "out = True"), (3, "out = 3")):
         with pytest.raises(StudyError, match=f"{re.escape(named)}: give an output folder"):
             run_study(study, out=bad, run=_fake_run)  # type: ignore[arg-type]
+
+
+def test_a_folder_without_results_is_named(tmp_path: Path) -> None:
+    (tmp_path / "results").mkdir()
+    with pytest.raises(FileNotFoundError, match=r"no results \(run the study first\)"):
+        read_results(tmp_path)
+
+
+def test_four_chunks_per_worker_are_in_flight_at_first(
+    tmp_path: Path, local_client: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """docs/studies.md: the driver submits chunks as earlier ones finish, at most four per
+    worker in flight. Seen as the chunks submitted before the first result is waited for."""
+    import dask.distributed
+
+    real = dask.distributed.as_completed
+    first: list[int] = []
+
+    class Spy(real):  # type: ignore[misc, valid-type]
+        def __iter__(self) -> Any:
+            first.append(self.count())
+            return super().__iter__()
+
+    monkeypatch.setattr(dask.distributed, "as_completed", Spy)
+    done = run_study(
+        Study.from_dict(STUDY),
+        out=tmp_path / "w",
+        client=local_client,
+        chunk_size=1,
+        progress=False,
+        run=_fake_run,
+    )
+    assert done.workers == 1 and done.chunks == 10
+    assert first == [4]
+
+
+class _Stop(Exception):
+    """Raised by the stand-in LocalCluster: the test only wants its arguments."""
+
+
+def test_a_local_cluster_has_one_worker_per_core_unless_told(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import dask.distributed
+
+    seen: list[dict[str, Any]] = []
+
+    def cluster(**kw: Any) -> None:
+        seen.append(kw)
+        raise _Stop
+
+    monkeypatch.setattr(dask.distributed, "LocalCluster", cluster)
+    for workers, cores in ((3, 8), (None, 5), (None, None)):
+        monkeypatch.setattr(runner.os, "cpu_count", lambda c=cores: c)
+        with pytest.raises(_Stop), dask_client(workers=workers):
+            pass
+    assert [kw["n_workers"] for kw in seen] == [3, 5, 1]
+    assert all(kw["threads_per_worker"] == 1 and kw["processes"] is True for kw in seen)
