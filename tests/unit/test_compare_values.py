@@ -420,6 +420,59 @@ def test_design_check_of_a_plant_set_that_cannot_be_built() -> None:
     assert out["paper"]["seconds"] == out["pi"]["seconds"]
 
 
+def test_design_check_shares_the_build_time_among_its_controllers(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The plant set's cost is split evenly: one controller carries all of it, two half each
+    (a plant set whose build takes at least 0.2 s and then fails)."""
+    import drivetrain_ctrl.design.clutch as dc
+    from drivetrain_ctrl.control.laws import load_controller
+
+    def slow_failure(**kw: Any) -> Any:
+        time.sleep(0.2)
+        raise ValueError("no plants")
+
+    monkeypatch.setattr(dc, "clutch_plant_set", slow_failure)
+    tic = time.perf_counter()
+    one = cm.design_check([load_controller("pi")], {})
+    elapsed = time.perf_counter() - tic
+    assert one["pi"]["reason"] == "plant set not built: ValueError: no plants"
+    assert 0.2 <= one["pi"]["seconds"] <= elapsed
+    tic = time.perf_counter()
+    two = cm.design_check([load_controller("paper"), load_controller("pi")], {})
+    elapsed = time.perf_counter() - tic
+    assert 0.1 <= two["paper"]["seconds"] == two["pi"]["seconds"] <= elapsed / 2
+
+
+def test_plot_draws_the_figures_or_writes_the_report_with_its_pdf(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """plot(): the figures of the data; plot(out): the report written there, with its PDF
+    unless pdf=False (the reporting functions replaced by recorders)."""
+    import drivetrain_ctrl.reporting.compare_report as rep
+
+    calls: list[tuple[Any, ...]] = []
+
+    def figures(data: Any) -> int:
+        calls.append(("figs", data))
+        return 1
+
+    def write(data: Any, out: Any, *, pdf: bool = True) -> int:
+        calls.append(("write", data, out, pdf))
+        return 2
+
+    monkeypatch.setattr(rep, "compare_figures", figures)
+    monkeypatch.setattr(rep, "write_compare_report", write)
+    data = {"verdict": {"ranking": []}, "invalid": []}
+    c = cm.Comparison(data, 1.0, 1, {})
+    assert c.plot() == 1 and c.plot(tmp_path) == 2 and c.plot(tmp_path, pdf=False) == 2
+    assert calls == [
+        ("figs", data),
+        ("write", data, tmp_path, True),
+        ("write", data, tmp_path, False),
+    ]
+
+
 # -- the assembly of data by compare(), its Dask step replaced ---------------------------------------
 #: made-up metrics and nominal slip-loop figures per controller
 _METRICS = {
@@ -503,6 +556,7 @@ def test_compare_assembles_data_from_the_task_results(fake_dask: _FakeDask) -> N
     an unstable nominal loop is left out of the ranking; the baseline gets its criteria; the
     costs go to the timing and not to data."""
     warned: list[str] = []
+    tic = time.perf_counter()
     res = cm.compare(
         controllers="paper,pi,hinf,paper",
         scenarios="hill-start,judder",
@@ -511,6 +565,7 @@ def test_compare_assembles_data_from_the_task_results(fake_dask: _FakeDask) -> N
         warn=warned.append,
         design_checks=False,
     )
+    assert 0 < res.wall_s <= time.perf_counter() - tic
     cases = [(fn, a, kw) for fn, a, kw in fake_dask.tasks if fn is cm.compare_case]
     assert len(fake_dask.tasks) == len(cases) == 3 * 3 + 2  # no design checks
     closed = [(a[0].name, a[1].name, kw) for _, a, kw in cases if a[0] is not None]
