@@ -1,10 +1,11 @@
 """Value tests of :mod:`drivetrain_ctrl.studies.compare` (issue 22 item 4: mutation score): the
 criteria against the documented limits, the verdict's ratios, score and reasoning text, the
 linear-against-nonlinear statement, what a run did after its slip point (hand-built runs), the
-option checks, the plant-set sources, the assembly of ``data`` by :func:`compare` (its Dask
-step replaced by canned records, in process) and, on one real run of the reduced model (pi on
-paper-start), the time responses, lock point, slip-loop figures, Bode data, later slip points
-and certified sector, each checked against a computation written out here."""
+option checks, the plant-set sources and their cost, the assembly of ``data`` by
+:func:`compare` (its Dask step replaced by canned records, in process), the Dask step itself on
+an in-process client, :meth:`Comparison.plot`'s dispatch and, on one real run of the reduced
+model (pi on paper-start), the time responses, lock point, slip-loop figures, Bode data, later
+slip points and certified sector, each checked against a computation written out here."""
 
 from __future__ import annotations
 
