@@ -642,7 +642,10 @@ def _score(
     nominal: Mapping[str, Any],
     weights: Mapping[str, float],
 ) -> dict[str, dict[str, Any]]:
-    """Per controller: the mean capped ratio to the best of each score key, and the score."""
+    """Per controller: the mean capped ratio to the best of each score key, and the score.
+
+    The best is the smallest positive value: a value of 0 counts as the best (ratio 1) instead
+    of making every positive value's ratio infinite."""
 
     def value(c: str, s: str | None, key: str) -> float | None:
         if key == "ms":
