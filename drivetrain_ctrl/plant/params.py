@@ -1080,6 +1080,11 @@ DEFAULT_SET = "passenger-car"
 def _resolve_source(source: str | Path) -> Path:
     if isinstance(source, Path):
         return source
+    if not isinstance(source, str):
+        raise TypeError(
+            f"source = {source!r}: a parameter set name or a path to a .toml file, "
+            f"not {type(source).__name__}"
+        )
     sets = available_parameter_sets()
     if source == "default" and not (PARAMETER_SETS_DIR / "default.toml").is_file():
         source = DEFAULT_SET
@@ -1100,8 +1105,8 @@ def load_params(source: str | Path) -> DrivetrainParams:
     is the built-in default set, :data:`DEFAULT_SET`) or a path to a TOML file. All values are SI (see :func:`field_info` for units and frames).
 
     Raises :class:`ParameterError` for invalid, unknown or missing parameters (message suffixed with
-    the file), :class:`ValueError` for an unknown set name and :class:`FileNotFoundError` for a
-    missing file.
+    the file), :class:`ValueError` for an unknown set name, :class:`TypeError` for a ``source``
+    that is neither a string nor a path, and :class:`FileNotFoundError` for a missing file.
     """
 
     path = _resolve_source(source)

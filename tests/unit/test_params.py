@@ -492,3 +492,9 @@ def test_outside_stroke_names_the_field_and_the_stroke() -> None:
     assert msg is not None and msg.startswith("controller.pedal0 = ")
     assert "actuator stroke" in msg and str(act.x_max) in msg
     assert act.outside_stroke("x", float("nan")) is not None
+
+
+@pytest.mark.parametrize("source", [3.5, None, ["default"]])
+def test_a_source_that_is_neither_a_name_nor_a_path_is_named(source: object) -> None:
+    with pytest.raises(TypeError, match=r"^source = .*: a parameter set name or a path"):
+        load_params(source)  # type: ignore[arg-type]
