@@ -66,6 +66,8 @@ def test_a_scenario_override_reaches_the_run_and_the_record() -> None:
     assert rec["lockup_time_s"] > base.record()["lockup_time_s"]
     with pytest.raises(CaseError, match="unknown scenario field 'slop'"):
         Case(scenario="engage-ramp", scenario_overrides={"slop": 0.05})
+    with pytest.raises(CaseError, match=r"scenario_overrides = \[\('slope', 0\.05\)\]: must map"):
+        Case(scenario="engage-ramp", scenario_overrides=[("slope", 0.05)])  # type: ignore[arg-type]
     with pytest.raises(CaseError, match=r"scenario_overrides\.slope = 'x'"):
         Case(scenario="engage-ramp", scenario_overrides={"slope": "x"})  # type: ignore[dict-item]
 
@@ -96,7 +98,7 @@ def test_kernel_load_time_is_zero_unless_preloaded() -> None:
     plain = simulate_case(_ramp())
     assert plain.kernel_load_s == 0.0
     pre = simulate_case(_ramp(), preload=True)
-    assert pre.kernel_load_s > 0.0
+    assert 0.0 < pre.kernel_load_s < 600.0  # the kernels are loaded: a 1-ms run
     assert pre.metrics == plain.metrics  # the preload changes nothing of the run
 
 
