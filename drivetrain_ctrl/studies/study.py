@@ -471,9 +471,7 @@ class Study:
         for i, c in enumerate(self.controllers):
             try:
                 spec = load_controller(c)
-            except FileNotFoundError:
-                raise StudyError(f"study.controllers[{i}] = {str(c)!r}: file not found") from None
-            except (ControllerError, ValueError) as exc:
+            except (ControllerError, ValueError) as exc:  # a missing file is a ValueError
                 raise StudyError(f"study.controllers[{i}] = {str(c)!r}: {exc}") from None
             if spec.name in specs:
                 raise StudyError(
