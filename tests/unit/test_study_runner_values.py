@@ -286,3 +286,23 @@ def test_a_local_cluster_has_one_worker_per_core_unless_told(
             pass
     assert [kw["n_workers"] for kw in seen] == [3, 5, 1]
     assert all(kw["threads_per_worker"] == 1 and kw["processes"] is True for kw in seen)
+
+
+def test_a_second_writer_of_a_folder_is_refused_naming_the_holder(tmp_path: Path) -> None:
+    """flock locks of two open files conflict also within one process: the second holder is
+    refused with the first one's note (its pid); after the first lets go, the folder is free."""
+    import os
+
+    from drivetrain_ctrl.studies.runner import folder_lock
+
+    with folder_lock(tmp_path) as path:
+        assert path == tmp_path / ".lock"
+        assert (tmp_path / ".lock").read_text().startswith(f"pid {os.getpid()} on host ")
+        with (
+            pytest.raises(StudyError, match=f"another study run is writing.*pid {os.getpid()}"),
+            folder_lock(tmp_path),
+        ):
+            pass
+    with folder_lock(tmp_path):
+        pass
+    assert (tmp_path / ".lock").exists()  # never removed
