@@ -206,3 +206,30 @@ def test_a_long_offending_value_is_cut_to_80_characters() -> None:
         shown = repr(text)[:77] + "..." if cut else repr(text)
         assert str(e.value) == f"gearbox.gear_ratios = {shown}: must be a sequence of numbers"
         assert len(shown) == 80  # at most 80 characters shown
+
+
+def test_a_pedal_map_in_newton_metres_is_stored_as_its_shape() -> None:
+    """A map whose values are k12 [N m] (above 1) reaching k12_max is divided by k12_max."""
+    d = _base()
+    k12 = d["clutch"]["k12_max"]
+    shape = list(d["clutch"]["pedal_map"]["y"])
+    assert max(shape) == 1.0 and k12 != 1.0
+    d["clutch"]["pedal_map"]["y"] = [k12 * y for y in shape]
+    pm = params_from_dict(d).clutch.pedal_map
+    assert list(pm.y) == pytest.approx(shape, rel=1e-15, abs=1e-15)
+    assert tuple(pm.x) == tuple(d["clutch"]["pedal_map"]["x"])
+
+
+def test_every_section_is_frozen_slotted_and_keyword_only() -> None:
+    p = default_params()
+    for f in dataclasses.fields(p):
+        section = getattr(p, f.name)
+        if not dataclasses.is_dataclass(section):
+            continue
+        first = dataclasses.fields(section)[0].name
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(section, first, getattr(section, first))
+        assert not hasattr(section, "__dict__"), f.name
+        values = [getattr(section, g.name) for g in dataclasses.fields(section)]
+        with pytest.raises(TypeError):
+            type(section)(*values)
