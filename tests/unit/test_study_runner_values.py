@@ -212,6 +212,17 @@ def test_a_run_writes_its_study_and_counts_rows(
     assert list(ok["lockup_time_s"]) == [v / 1000.0 for v in ok["param:vehicle.M_v"]]
     assert done.passed == int((ok["lockup_time_s"] <= 2.0).sum())
     assert 0.0 < done.wall_s < 600.0
+    pd.testing.assert_frame_equal(done.table(), df)
+    assert done.summary() == (
+        f"10 run(s) computed in {done.wall_s:.1f} s on 1 worker(s) (0 already present); "
+        f"10 of 10 rows in {out / 'results'}, 6 failed, {done.passed} passed every criterion"
+    )
+    # a chunk file is written where its name says, and reads back as its rows
+    rows = [{"key": "k1", "status": "ok"}, {"key": "k2", "status": "failed"}]
+    schema = runner._schema(study)
+    path = runner._write_chunk(tmp_path, rows, schema)
+    assert path == tmp_path / runner._chunk_name(["k1", "k2"]) and path.is_file()
+    assert list(pd.read_parquet(path)["key"]) == ["k1", "k2"]
     # the folder's sample table: the study's samples, one row per sample
     samples = pd.read_parquet(out / "samples.parquet")
     pd.testing.assert_frame_equal(samples, sample_table(study))
