@@ -9,6 +9,7 @@ taken from the runner's helpers. The runs use an in-process Dask client and a st
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -217,6 +218,12 @@ def test_a_run_writes_its_study_and_counts_rows(
         f"10 run(s) computed in {done.wall_s:.1f} s on 1 worker(s) (0 already present); "
         f"10 of 10 rows in {out / 'results'}, 6 failed, {done.passed} passed every criterion"
     )
+    # the record is frozen; a second run of the complete folder computes nothing on no worker
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        done.rows = 0  # type: ignore[misc]
+    again = run_study(study, out=out, client=local_client, chunk_size=3, run=_fake_run)
+    assert (again.computed, again.skipped, again.workers, again.chunks) == (0, 10, 0, 0)
+    assert again.rows == 10
     # a chunk file is written where its name says, and reads back as its rows
     rows = [{"key": "k1", "status": "ok"}, {"key": "k2", "status": "failed"}]
     schema = runner._schema(study)
@@ -317,3 +324,10 @@ def test_a_second_writer_of_a_folder_is_refused_naming_the_holder(tmp_path: Path
     with folder_lock(tmp_path):
         pass
     assert (tmp_path / ".lock").exists()  # never removed
+
+
+@pytest.mark.parametrize("run", [3, "run_case", None])
+def test_a_run_that_is_not_a_function_is_named(tmp_path: Path, run: object) -> None:
+    with pytest.raises(StudyError, match=r"^run = .*: must be a function from a Case to a record$"):
+        run_study(Study.from_dict(STUDY), out=tmp_path / "o", run=run)  # type: ignore[arg-type]
+    assert not (tmp_path / "o").exists()  # refused before anything is written
