@@ -13,7 +13,9 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import re
+import stat
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -218,6 +220,10 @@ def test_a_run_writes_its_study_and_counts_rows(
         f"10 run(s) computed in {done.wall_s:.1f} s on 1 worker(s) (0 already present); "
         f"10 of 10 rows in {out / 'results'}, 6 failed, {done.passed} passed every criterion"
     )
+    # the lock file: readable by all, writable by its owner (less what the umask takes away)
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE((out / runner.LOCK).stat().st_mode) == 0o644 & ~umask
     # the record is frozen; a second run of the complete folder computes nothing on no worker
     with pytest.raises(dataclasses.FrozenInstanceError):
         done.rows = 0  # type: ignore[misc]
