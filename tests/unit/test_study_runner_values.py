@@ -200,7 +200,7 @@ def test_a_run_writes_its_study_and_counts_rows(
     tmp_path: Path, local_client: Any, capsys: pytest.CaptureFixture[str]
 ) -> None:
     study = Study.from_dict(STUDY)
-    out = tmp_path / "o"
+    out = tmp_path / "new" / "o"  # made with its parents
     done = run_study(study, out=out, client=local_client, chunk_size=3, run=_fake_run)
     # the folder's study.json: the digest and the study, as indented JSON
     text = (out / "study.json").read_text()
@@ -224,6 +224,7 @@ def test_a_run_writes_its_study_and_counts_rows(
     umask = os.umask(0)
     os.umask(umask)
     assert stat.S_IMODE((out / runner.LOCK).stat().st_mode) == 0o644 & ~umask
+    assert (out / runner.LOCK).read_text().startswith(f"pid {os.getpid()} on host ")
     # the record is frozen; a second run of the complete folder computes nothing on no worker
     with pytest.raises(dataclasses.FrozenInstanceError):
         done.rows = 0  # type: ignore[misc]
@@ -337,3 +338,19 @@ def test_a_run_that_is_not_a_function_is_named(tmp_path: Path, run: object) -> N
     with pytest.raises(StudyError, match=r"^run = .*: must be a function from a Case to a record$"):
         run_study(Study.from_dict(STUDY), out=tmp_path / "o", run=run)  # type: ignore[arg-type]
     assert not (tmp_path / "o").exists()  # refused before anything is written
+
+
+def test_one_worker_gets_half_the_remaining_runs_at_most() -> None:
+    """After the first chunk, at most the remaining runs over twice the workers: one worker."""
+    s = _ChunkSizer(None, 10, 1)
+    assert s.size() == runner.FIRST_CHUNK == 4
+    s.finished(4)  # at once: the target alone would allow a huge chunk
+    assert [s.size(), s.size()] == [3, 2]  # ceil(6 / 2), ceil(3 / 2)
+
+
+@pytest.mark.parametrize("linear", [True, False])
+def test_the_linear_columns_are_in_the_schema_iff_the_study_asks(linear: bool) -> None:
+    d = {**STUDY, "study": {**STUDY["study"], "linear": linear}}
+    names = runner._schema(Study.from_dict(d)).names
+    want = {*runner.LINEAR_FIGURES, "linear_note"}
+    assert (want <= set(names)) if linear else not (want & set(names))
