@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import jit, jit_inline, jit_nonrt
+from ._jit import jit_inline, jit_nonrt
 from .controller import (
     CI_OUT,
     N_CL_EVENT_BLOCKS,
@@ -135,8 +135,8 @@ MAX_DIP_RETAKES = 4
 def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):
     """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT).
 
-    A compiled call (not inlined: compiled once for the event location and the step loop, where
-    it is needed only for a step cut at a stop time)."""
+    A compiled call (not inlined: compiled once for the event location, the event state and a
+    step cut at a stop time; none of them is in the step loop)."""
     eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
     cl_guards_cold(Cd, cs, y, nx, t, sv, g, n_guards(D))
@@ -218,13 +218,15 @@ def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):
     return ok
 
 
-@jit
+@jit_nonrt
 def _decide_fast(
     D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
 ):
     """Decide plant modes (as :func:`decide_modes`) and controller states together until no guard
     fires, with the array cache of mode matrices and work arrays ``W = (cand, caps, idx, trial,
-    tau, lamw, prog)``. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in
+    tau, lamw, prog)``. A compiled call without reference counting (it allocates nothing itself;
+    a new mode's matrices come from :func:`_mm_insert`): with it, each call counted the references
+    of its some 80 array arguments up and down. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in
     cache slot ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was
     taken) or guards still fired after 20 rounds, ``DM_TOO_MANY`` if more than
     ``DM_MAX_CANDIDATES`` elements were candidates (then no decision was made: stop the run)."""
