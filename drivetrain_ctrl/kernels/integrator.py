@@ -421,7 +421,8 @@ def simulate_kernel(
     npow = n + D.ratio.shape[0] + nf
     ny = nxs + (1 + npow if energy else 0)
     nsig = S[2].shape[0]
-    ng = n_guards(D) + N_CL_GUARDS
+    n_pg = n_guards(D)  # the plant's guards (then the controller's)
+    ng = n_pg + N_CL_GUARDS
     u = np.zeros(nu)
     uw = np.zeros(nu)
     sv = np.zeros(nsig)
@@ -707,14 +708,16 @@ def simulate_kernel(
             # re-decide the modes at t; g0 (guards at t in the new mode) and u, sv are the
             # decision's (_dm_guards)
             n_old = n_ev
-            slot, nb, h_stab, stab_exact, n_ev = _redecide(
+            slot, nb, n_ev = _redecide(
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
-                W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
-                (ev_t, ev_el, ev_from, ev_to, cs_old), n_ev,
+                W, mmask, mP, mPT, mL, mst, ev_t, ev_el, ev_from, ev_to, cs_old, n_ev,
             )  # fmt: skip
             if nb == DM_TOO_MANY:
                 status = TOO_MANY_CANDIDATES
                 break
+            h_stab, stab_exact = _stab_lookup(
+                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
+            )
             n_incons += nb
             if event:
                 # the Zeno check counts the events located on the trajectory (a controller guard
@@ -726,7 +729,7 @@ def simulate_kernel(
                     if hit:
                         status = ZENO
                         status_el = ev_el[e]
-                if j >= n_guards(D):
+                if j >= n_pg:
                     zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
                     if hit:
                         status = ZENO
