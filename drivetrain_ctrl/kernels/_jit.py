@@ -138,8 +138,11 @@ def _compiler(**options: Any) -> Callable[[_F], Dispatcher[_F]]:
     return decorate
 
 
-#: compiled, cached; numpy error model (no Python exceptions on division: ~2x faster)
-jit = _compiler(error_model="numpy")
+#: compiled, cached; numpy error model (no Python exceptions on division: ~2x faster). NRT on
+#: explicitly: numba lets a callee inherit the caller's NRT flag when it is not set, and such a
+#: function called from a ``jit_nonrt`` one (``_mm_insert`` from ``_decide_fast``) must still
+#: allocate
+jit = _compiler(error_model="numpy", _nrt=True)
 #: small helpers inlined into their callers (avoids copying ChainData on every call)
 jit_inline = _compiler(error_model="numpy", inline="always")
 #: the per-step path, compiled without numba's reference counting (NRT): such a function must not

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import jit, jit_inline, jit_nonrt
+from ._jit import jit_inline, jit_nonrt
 from .controller import (
     CI_OUT,
     N_CL_EVENT_BLOCKS,
@@ -49,7 +49,6 @@ from .dopri import (
     full_rhs_call,
 )
 from .physics import SLIP_NEG, SLIP_POS, guards_given_forces, guards_into, n_guards, rel_speed
-from .stability import _stab_lookup
 
 
 @jit_inline
@@ -135,8 +134,8 @@ MAX_DIP_RETAKES = 4
 def _guards_step_inl(D, S, ua, ub, t, t_ref, y, fm, reg, Lam, nx, u, g, Cd, cs, sv, tau):
     """Plant and controller guards at (t, y) on the per-step path (no allocation, no NRT).
 
-    A compiled call (not inlined: compiled once for the event location and the step loop, where
-    it is needed only for a step cut at a stop time)."""
+    A compiled call (not inlined: compiled once for the event location, the event state and a
+    step cut at a stop time; none of them is in the step loop)."""
     eval_u_cold(S, ua, ub, t, t_ref, y, nx, Cd, cs, sv, u)
     guards_into(D, y, u, fm, reg, Lam, g, tau)
     cl_guards_cold(Cd, cs, y, nx, t, sv, g, n_guards(D))
@@ -218,14 +217,16 @@ def _dm_guards(D, y, u, fm, reg, Lam, g0, tau, Cd, cs, nx, t, sv):
     return ok
 
 
-@jit
+@jit_nonrt
 def _decide_fast(
     D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
 ):
     """Decide plant modes (as :func:`decide_modes`) and controller states together until no guard
     fires, with the array cache of mode matrices and work arrays ``W = (cand, caps, idx, trial,
-    tau, lamw, prog)``. Returns ``(slot, n_bad)``: the mode matrices of the decided mode are in
-    cache slot ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was
+    tau, lamw, prog)``. A compiled call without reference counting (it allocates nothing itself;
+    a new mode's matrices come from :func:`_mm_insert`): with it, every call counted its some 70
+    array arguments up and down. Returns ``(slot, n_bad)``: the mode matrices of the decided mode
+    are in cache slot ``slot``; ``n_bad`` is 1 if no combination was consistent (the least inconsistent was
     taken) or guards still fired after 20 rounds, ``DM_TOO_MANY`` if more than
     ``DM_MAX_CANDIDATES`` elements were candidates (then no decision was made: stop the run)."""
     cand, caps, idx, trial, tauw, lamw, prog = W
@@ -564,31 +565,29 @@ def _event_state(
     return hi, j, nfev  # no integrated state qualified: the extension's (yhi), as located
 
 
-@jit_inline
+@jit_nonrt
 def _redecide(
-    D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0, W, MM,
-    SC, EV, n_ev,
+    D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0, W, mmask,
+    mP, mPT, mL, mst, ev_t, ev_el, ev_from, ev_to, cs_old, n_ev,
 ):  # fmt: skip
-    """At an event or a stop: decide the modes (:func:`_decide_fast`), look up the mode's
-    stability bound and append the mode changes to the event list. ``MM = (mmask, mP, mPT, mL,
-    mst)`` mode-matrix cache, ``SC = (hcache, jcache, lcache)`` stability-bound caches, ``EV =
-    (ev_t, ev_el, ev_from, ev_to, cs_old)`` event list and work array (tuples: CPython passes a
-    call of more than 30 arguments as ``*args``, which numba cannot inline). The controller's
-    block states that the decision changes are listed too (element ``nf + nt + k``, see
-    ``N_CL_EVENT_BLOCKS``). Returns ``(slot, n_bad, h_stab, stab_exact, n_ev)``."""
-    mmask, mP, mPT, mL, mst = MM
-    hcache, jcache, lcache = SC
-    ev_t, ev_el, ev_from, ev_to, cs_old = EV
-    fm_old[:] = fm
-    reg_old[:] = reg
+    """At an event or a stop: decide the modes (:func:`_decide_fast`; ``mmask, mP, mPT, mL, mst``
+    the mode-matrix cache) and append the mode changes to the event list ``ev_t, ev_el, ev_from,
+    ev_to`` (``cs_old`` a work array). The controller's block states that the decision changes
+    are listed too (element ``nf + nt + k``, see ``N_CL_EVENT_BLOCKS``). Returns ``(slot, n_bad,
+    n_ev)``. A compiled call without reference counting: inlined into the reference-counted
+    :func:`~drivetrain_ctrl.kernels.integrator.simulate_kernel`, its some 70 array arguments
+    were counted up and down at every event."""
+    for f in range(fm.shape[0]):
+        fm_old[f] = fm[f]
+    for k in range(reg.shape[0]):
+        reg_old[k] = reg[k]
     for k in range(N_CL_EVENT_BLOCKS):
         cs_old[k] = cs[k]
     slot, nb = _decide_fast(
         D, S, ua, ub, t, t_ref, y, nx, fm, reg, u, tol_w, Cd, cs, sv, g0, W, mmask, mP, mPT, mL, mst
     )
     if nb == DM_TOO_MANY:
-        return slot, nb, 0.0, True, n_ev
-    h_stab, stab_exact = _stab_lookup(D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache)
+        return slot, nb, n_ev
     n_ev = _record_changes(fm, fm_old, reg, reg_old, t, ev_t, ev_el, ev_from, ev_to, n_ev)
     if Cd.ci[CI_OUT] >= 0:
         base = fm.shape[0] + reg.shape[0]
@@ -599,7 +598,7 @@ def _redecide(
                 ev_from[n_ev] = int(cs_old[k])
                 ev_to[n_ev] = int(cs[k])
                 n_ev += 1
-    return slot, nb, h_stab, stab_exact, n_ev
+    return slot, nb, n_ev
 
 
 @jit_inline

@@ -152,6 +152,8 @@ LOG_ERR_FLOOR = float(np.log(1e-4))
 
 #: return codes of :func:`_advance`
 ADV_DONE, ADV_MAX_STEPS, ADV_TOO_SMALL, ADV_FULL, ADV_STAB, ADV_STEP = 0, 1, 2, 3, 4, 5
+#: the fired guard of an ``ADV_STEP`` cut to a stop time: its end's guards are not evaluated yet
+GUARDS_PENDING = -2
 
 
 @jit_nonrt
@@ -208,7 +210,8 @@ def _advance(
     ``ADV_TOO_SMALL``, ``ADV_FULL`` (no room to record a step), ``ADV_STAB`` (the tight stability
     bound is needed before the next step) or ``ADV_STEP``: an accepted step in which a guard
     fired or that ends at a stop time, not yet taken (the caller locates the event or handles the
-    stop, as before). Scalars in ``fs`` = [t, h, log(err_old), h_stab, t_sample, hh, t1, h_next,
+    stop; for a step cut to a stop time ``j`` is ``GUARDS_PENDING`` and the caller evaluates the
+    guards at its end). Scalars in ``fs`` = [t, h, log(err_old), h_stab, t_sample, hh, t1, h_next,
     p_min, t_pmin, p_scale] and ``ist`` = [ib, n_steps, n_rej, nfev, n_rec, stab_exact, j,
     hit_stop, io, el_pmin] (in and out; the last three of ``fs`` and the last of ``ist``: the
     second-law scan of :func:`_scan_dissipation` over the accepted steps' ends, with ``energy``).
@@ -315,13 +318,14 @@ def _advance(
         h_next = hh * min(5.0, max(0.2, fac))
         t1 = t + hh if not hit_stop else t_stop
         # the last stage was evaluated at t + 1.0 * hh, y1: when that is t1 bitwise (always
-        # unless the step was cut to a stop time), its inputs and forces give the guards
-        u_fresh = t + hh == t1
-        if u_fresh:
+        # unless the step was cut to a stop time), its inputs and forces give the guards; a step
+        # cut to a stop time is returned with its guards still to evaluate (GUARDS_PENDING: the
+        # caller does it, so that this loop holds no call of the guards)
+        if t + hh == t1:
             _guards_last_stage(D, y1, fm, reg, Lam, nx, uw, g1, Cd, cs, svw, tau, t1, u, sv)
+            j = _fired(g0, g1)
         else:
-            _guards_step_inl(D, S, ua, ub, t1, t_ref, y1, fm, reg, Lam, nx, u, g1, Cd, cs, sv, taug)
-        j = _fired(g0, g1)
+            j = GUARDS_PENDING
         if j >= 0 or hit_stop:
             fs[5] = hh
             fs[6] = t1
@@ -417,7 +421,8 @@ def simulate_kernel(
     npow = n + D.ratio.shape[0] + nf
     ny = nxs + (1 + npow if energy else 0)
     nsig = S[2].shape[0]
-    ng = n_guards(D) + N_CL_GUARDS
+    n_pg = n_guards(D)  # the plant's guards (then the controller's)
+    ng = n_pg + N_CL_GUARDS
     u = np.zeros(nu)
     uw = np.zeros(nu)
     sv = np.zeros(nsig)
@@ -629,6 +634,12 @@ def simulate_kernel(
         h_next = fs[7]
         j = ist[6]
         hit_stop = ist[7] != 0
+        if j == GUARDS_PENDING:
+            # a step cut to a stop time: the guards at its end (t1, y1), and the inputs there
+            _guards_step_inl(
+                D, S, ua, ub, t1, t_ref, y1, fm, reg, mL[slot], nx, u, g1, Cd, cs, sv, taug
+            )
+            j = _fired(g0, g1)
         event = j >= 0
         if not event:
             n_rec, io = _step_end(
@@ -697,14 +708,16 @@ def simulate_kernel(
             # re-decide the modes at t; g0 (guards at t in the new mode) and u, sv are the
             # decision's (_dm_guards)
             n_old = n_ev
-            slot, nb, h_stab, stab_exact, n_ev = _redecide(
+            slot, nb, n_ev = _redecide(
                 D, S, ua, ub, t, t_ref, y, nx, fm, reg, fm_old, reg_old, u, tol_w, Cd, cs, sv, g0,
-                W, (mmask, mP, mPT, mL, mst), (hcache, jcache, lcache),
-                (ev_t, ev_el, ev_from, ev_to, cs_old), n_ev,
+                W, mmask, mP, mPT, mL, mst, ev_t, ev_el, ev_from, ev_to, cs_old, n_ev,
             )  # fmt: skip
             if nb == DM_TOO_MANY:
                 status = TOO_MANY_CANDIDATES
                 break
+            h_stab, stab_exact = _stab_lookup(
+                D, y, u, fm, reg, mP[slot], nx, hcache, jcache, lcache
+            )
             n_incons += nb
             if event:
                 # the Zeno check counts the events located on the trajectory (a controller guard
@@ -716,7 +729,7 @@ def simulate_kernel(
                     if hit:
                         status = ZENO
                         status_el = ev_el[e]
-                if j >= n_guards(D):
+                if j >= n_pg:
                     zeno_pos, hit = _zeno_push(zeno_ring, zeno_pos, t, zeno_window)
                     if hit:
                         status = ZENO
