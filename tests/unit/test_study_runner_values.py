@@ -207,6 +207,7 @@ def test_a_run_writes_its_study_and_counts_rows(
     want = {"digest": study.digest, "study": study.to_dict()}
     assert text == json.dumps(want, indent=2, default=str) + "\n"
     df = read_results(out)
+    assert list(df.index) == list(range(10))  # one index over the four chunk files
     n_failed = 3 * 2  # samples 0, 2, 4 under both controllers
     assert done.rows == done.expected == done.computed == len(df) == 10
     assert done.failed == n_failed == int((df["status"] == "failed").sum())
