@@ -358,3 +358,15 @@ def test_pi_design_on_a_chosen_nominal_plant_is_that_plants_design() -> None:
     assert run0.result.plant is run0.plant_set[0] and run0.controller.name == "z"
     assert run0.wall_time_s > 0.0
     assert dataclasses.replace(run0.controller, design=None).kp == run0.result.kp
+
+
+def test_results_are_frozen() -> None:
+    row = _row("a", 1.2)
+    run = _run([row], True)
+    srun = SwitchingRun("reduced", None, None, ())
+    objs: list[Any] = [row, run, _spec(), srun, SwitchingCheck("c", "s", "p", (srun,))]
+    for obj in objs:
+        field = dataclasses.fields(obj)[0].name
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, field, None)
+    assert hash(row) == hash(_row("a", 1.2))
