@@ -370,3 +370,17 @@ def test_results_are_frozen() -> None:
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, field, None)
     assert hash(row) == hash(_row("a", 1.2))
+
+
+def test_pi_nominal_default_when_no_plant_has_the_files_delay() -> None:
+    """A set sampled with 2 samples of delay and a file with 1: no plant has the file's delay,
+    the design is made on the first plant (the only one)."""
+    spec = {
+        "plants": {"controller": "pi-10ms", "times": 1, "delay_samples": 2},
+        "design": {"phase_margin": 60.0},
+        "controller": {"delay_samples": 1},
+    }
+    run = design_from_spec("pi", spec)
+    assert len(run.plant_set) == 1 and run.result.plant is run.plant_set[0]
+    assert run.result.plant.delay == pytest.approx(0.02)
+    assert run.controller.delay_samples == 1 and run.controller.sample_period_s == 0.01
