@@ -6,6 +6,7 @@ the throttle equal to the settled engine lag, the vehicle speed from km/h by han
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from types import SimpleNamespace
 
@@ -14,12 +15,15 @@ import pytest
 
 from drivetrain_ctrl import kernels as K
 from drivetrain_ctrl import linear as L
+from drivetrain_ctrl.core.tables import PwlTable
 from drivetrain_ctrl.linear.operating_point import _certificate, _kind_of, _mu_ratio
+from drivetrain_ctrl.plant.chain import Body, Chain, Coupling, Friction
 from drivetrain_ctrl.plant.drivetrain import Drivetrain
-from drivetrain_ctrl.plant.model import Mode
+from drivetrain_ctrl.plant.model import Mode, Model
 from drivetrain_ctrl.plant.params import default_params
 from drivetrain_ctrl.scenarios.scenario import load_scenario
 from drivetrain_ctrl.sim.run import run_scenario
+from drivetrain_ctrl.sim.simulator import simulate
 
 P = default_params()
 XC = 0.0725  # inside a pedal-map piece
@@ -177,10 +181,11 @@ def test_slip_point_with_the_engine_slower_slips_negative() -> None:
     assert op.certificate.slip_speed == pytest.approx(-40.0, rel=1e-14)
 
 
+@pytest.mark.parametrize("slope", [0.0, 0.02])
 @pytest.mark.parametrize("kind", ["reduced", "full"])
-def test_locked_trim_by_hand(kind: str) -> None:
+def test_locked_trim_by_hand(kind: str, slope: float) -> None:
     dt = Drivetrain(P, kind=kind)
-    op = L.locked_trim(dt, vehicle_speed_kmh=45.0, slope=0.02)
+    op = L.locked_trim(dt, vehicle_speed_kmh=45.0, slope=slope)
     m = op.model
     c = op.certificate
     v = 45.0 / 3.6
@@ -192,10 +197,6 @@ def test_locked_trim_by_hand(kind: str) -> None:
     xdot = m.rhs(np.array(op.x), np.array(op.u), op.mode)
     assert np.max(np.abs(xdot[: m.n_bodies])) < 1e-8
     assert op.clutch_mode == "stuck" and c.kind == "equilibrium" and c.valid
-    # the vehicle's road load at that speed and slope is carried: F = engine torque * ratio / R
-    vp = P.vehicle
-    F = vp.k_v(0.02) + vp.b_v * v + 0.5 * vp.rho_a * vp.C_x * vp.S * v * v
-    F += vp.M_v * 9.81 * math.sin(0.02)
     e = P.engine
     w1 = op.state("omega_engine")
     C1 = e.K * theta - e.b1 * w1 - e.c1
@@ -205,7 +206,6 @@ def test_locked_trim_by_hand(kind: str) -> None:
     for s in c.stuck_margins:
         assert s.margin == pytest.approx(s.capacity - abs(s.torque), rel=1e-14, abs=1e-12)
     assert any(n.startswith("trim residual") for n in c.notes)
-    assert F > 0
     # the recipe rebuilds the same point
     op2 = L.rebuild_operating_point(op, P)
     np.testing.assert_allclose(op2.x, op.x, rtol=1e-12, atol=1e-12)
@@ -223,3 +223,94 @@ def test_mu_ratio_of_a_falling_table_by_hand(kind: str) -> None:
         mu, dmu = _mu_ratio(op.model, fc, np.array(op.x), op.mode)
         assert mu == pytest.approx(want[0], rel=1e-12)
         assert dmu == pytest.approx(want[1], rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("kind", ["reduced", "full"])
+def test_locked_trim_slope_load_by_hand(kind: str) -> None:
+    # at one speed the losses are the same: the engine's extra output torque on a slope is the
+    # slope's extra road force M g (sin s - sin 0) plus the rolling term's change, referred to
+    # the primary shaft (R_p / tau_t)
+    dt = Drivetrain(P, kind=kind)
+    e, vp = P.engine, P.vehicle
+    C1 = {}
+    for slope in (0.0, 0.05):
+        op = L.locked_trim(dt, vehicle_speed_kmh=45.0, slope=slope)
+        C1[slope] = e.K * op.state("lag_engine") - e.b1 * op.state("omega_engine") - e.c1
+    dF = vp.k_v(0.05) - vp.k_v(0.0) + vp.M_v * 9.81 * math.sin(0.05)
+    assert C1[0.05] - C1[0.0] == pytest.approx(dF * P.driveline.R_p / dt.tau_t, rel=1e-8)
+
+
+def _two_body_chain(friction_name: str) -> Model:
+    # body a (1 kg m^2) driven by torque T, body b (2 kg m^2), one friction between them of
+    # capacity `cap` times mu(|w|)/mu(0) = 1 - 0.5 |w| / 20 (the model's only table: index 0)
+    bodies = (Body("a", 1.0, torque_input="T"), Body("b", 2.0))
+    mu = PwlTable((0.0, 20.0), (1.0, 0.5))
+    fr = Friction(capacity_input="cap", name=friction_name, mu_table=mu)
+    return Model(Chain(bodies, (Coupling("c", friction=fr),), inputs=("T", "cap")))
+
+
+@pytest.mark.parametrize("name", ["f", "clutch"])
+def test_a_chain_of_two_bodies_by_hand(name: str) -> None:
+    m = _two_body_chain(name)
+    res = simulate(m, np.array([10.0, 0.0]), {"T": 0.0, "cap": 5.0}, t_end=0.1)
+    op = L.operating_point_from_result(res, 0.05)
+    assert op.kind == "chain" and op.mode_dict()[name] == "slip+"
+    w = float(op.x[0] - op.x[1])
+    mu = 1.0 - 0.5 * w / 20.0
+    assert _mu_ratio(m, 0, np.array(op.x), op.mode) == pytest.approx((mu, -0.025), rel=1e-12)
+    c = op.certificate
+    # a' = -cap mu / 1, b' = +cap mu / 2
+    assert dict(c.drift) == pytest.approx({"omega_a": -5.0 * mu, "omega_b": 2.5 * mu}, rel=1e-12)
+    assert c.drift_norm == pytest.approx(5.0 * mu, rel=1e-12)
+    assert c.valid and c.min_guard == pytest.approx(5.0)
+    if name == "clutch":  # the slip figures are the clutch's
+        assert c.slip_speed == pytest.approx(w, rel=1e-14)
+        assert c.slip_accel == pytest.approx(-7.5 * mu, rel=1e-12)
+        assert c.time_to_lock_s == pytest.approx(w / (7.5 * mu), rel=1e-12)
+    else:  # no clutch: no slip figures
+        assert c.slip_speed is None and c.slip_accel is None and c.time_to_lock_s is None
+        assert c.notes == ()
+
+
+def test_the_model_is_neither_shown_nor_compared(ramp) -> None:
+    dt, res = ramp
+    op = L.operating_point_from_result(res, 1.0, drivetrain=dt)
+    assert "model=" not in repr(op) and "drivetrain=" not in repr(op)
+    other = Drivetrain(P, kind="reduced")
+    assert other.model is not op.model
+    assert dataclasses.replace(op, model=other.model, drivetrain=other) == op
+
+
+@pytest.mark.parametrize("kind", ["reduced", "full"])
+def test_quasi_static_twist_of_a_strong_clutch(kind: str) -> None:
+    # a clutch of 5000 N m fully engaged: the quasi-static twist torque is far above 1000 N m,
+    # and still the driven shaft and the vehicle accelerate together
+    params = P.replace(**{"clutch.k12_max": 5000.0})
+    dt = Drivetrain(params, kind=kind)
+    op = L.slip_operating_point(dt, omega_engine=170.0, omega_driven=80.0, x_c=0.03, throttle=0.5)
+    m = op.model
+    xdot = m.rhs(np.array(op.x), np.array(op.u), op.mode)
+    driven = "omega_primary" if kind == "reduced" else "omega_disc"
+    a_driven = xdot[m.state_index(driven)]
+    a_vehicle = xdot[m.state_index("v_vehicle")]
+    assert a_driven == pytest.approx(dt.tau_t / params.driveline.R_p * a_vehicle, rel=1e-9)
+    assert abs(a_driven) > 100.0
+
+
+def test_locked_trim_near_the_clutch_capacity() -> None:
+    # 20 km/h on the flat: the trim throttle (about 0.2) does not depend on the pedal while the
+    # clutch holds; at x_c = 0.088 m (about 23 N m of capacity) it still holds, though at a
+    # throttle of 0.6 it would slip
+    dt = Drivetrain(P, kind="reduced")
+    engaged = L.locked_trim(dt, vehicle_speed_kmh=20.0, x_c=0.03)
+    near = L.locked_trim(dt, vehicle_speed_kmh=20.0, x_c=0.088)
+    assert near.input("throttle") == pytest.approx(engaged.input("throttle"), rel=1e-10)
+    assert 0.15 < near.input("throttle") < 0.3
+    assert near.clutch_mode == "stuck"
+    cl = {s.element: s for s in near.certificate.stuck_margins}["clutch"]
+    # the capacity by hand: the pedal map between its knots 0.085 and 0.09 m
+    pm = P.clutch.pedal_map
+    k = pm.x.index(0.085)
+    shape = pm.y[k] + (pm.y[k + 1] - pm.y[k]) * (0.088 - 0.085) / (0.09 - 0.085)
+    assert cl.capacity == pytest.approx(P.clutch.k12_max * shape, rel=1e-12)
+    assert 0.0 < cl.margin < cl.capacity
