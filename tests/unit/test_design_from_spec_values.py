@@ -384,3 +384,16 @@ def test_pi_nominal_default_when_no_plant_has_the_files_delay() -> None:
     assert len(run.plant_set) == 1 and run.result.plant is run.plant_set[0]
     assert run.result.plant.delay == pytest.approx(0.02)
     assert run.controller.delay_samples == 1 and run.controller.sample_period_s == 0.01
+
+
+def test_pid_provenance_records_kd_and_tf_and_a_pi_does_not() -> None:
+    run = design_from_spec("pid", {**SMALL, "design": {"ms": 1.6, "tf": 0.02}})
+    assert run.result.structure == "pid" and run.controller.law == "lti"
+    assert run.controller.design is not None
+    ach = run.controller.design["achieved"]
+    assert ach["kd"] == float(f"{run.result.kd:.6g}") and ach["tf"] == pytest.approx(0.02)
+    assert ach["converged"] is run.result.converged
+    run = design_from_spec("robust-pi", SMALL)
+    assert run.controller.design is not None
+    ach = run.controller.design["achieved"]
+    assert "kd" not in ach and "tf" not in ach and ach["kp"] == float(f"{run.result.kp:.6g}")
