@@ -15,7 +15,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -65,24 +65,6 @@ def _study(tmp: Path, samples: int = 6) -> Path:
     f = tmp / "tiny.toml"
     f.write_text(STUDY.format(samples=samples))
     return f
-
-
-@pytest.fixture(scope="module")
-def local_client() -> Iterator[Any]:
-    """An in-process Dask client (threads; the compiled kernels are loaded in this process)."""
-    from dask.distributed import Client, LocalCluster
-
-    cluster = LocalCluster(
-        n_workers=1,
-        threads_per_worker=1,
-        processes=False,
-        dashboard_address=None,
-        scheduler_kwargs=_NO_8787,
-    )
-    client = Client(cluster)
-    yield client
-    client.close()
-    cluster.close()
 
 
 def _expected_rows(study: Study) -> dict[str, Mapping[str, Any]]:

@@ -17,7 +17,6 @@ import os
 import re
 import stat
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -63,24 +62,6 @@ def _fake_run(case: Case) -> dict[str, Any]:
     if sample % 2 == 0:
         return {"status": "failed", "error": "made up"}
     return {"status": "ok", "lockup_time_s": case.overrides["vehicle.M_v"] / 1000.0}
-
-
-@pytest.fixture(scope="module")
-def local_client() -> Iterator[Any]:
-    """An in-process Dask client (threads), its HTTP server on an ephemeral loopback port."""
-    from dask.distributed import Client, LocalCluster
-
-    cluster = LocalCluster(
-        n_workers=1,
-        threads_per_worker=1,
-        processes=False,
-        dashboard_address=None,
-        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-    )
-    client = Client(cluster)
-    yield client
-    client.close()
-    cluster.close()
 
 
 def test_numbers_and_texts_of_a_row() -> None:
