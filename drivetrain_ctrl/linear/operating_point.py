@@ -544,8 +544,9 @@ def locked_trim(
     zero friction torque in a stuck friction parallel to a spring (the spring then carries the
     torque: the largest margin). Solved with ``scipy.optimize.root`` (the table regions follow the
     iterate). Raises ValueError naming the speed and slope if the throttle needed is outside
-    [0, 1], or if the clutch cannot hold (its stuck torque exceeds its static capacity); also if
-    ``x_c`` is outside the pedal map's knots or ``brake`` < 0.
+    [0, 1], if the clutch cannot hold (its stuck torque exceeds its static capacity) or another
+    friction element changes mode at the solution (e.g. the tyre slips); also if ``x_c`` is
+    outside the pedal map's knots or ``brake`` < 0.
     """
     vk = finite_float("vehicle_speed_kmh", vehicle_speed_kmh)
     if vk <= 0:
@@ -684,6 +685,20 @@ def locked_trim(
     if op.clutch_mode != "stuck":
         raise ValueError(
             f"locked_trim: the clutch cannot hold ({where}): its mode is {op.clutch_mode!r}"
+        )
+    # the trim solved the friction modes of the initial decision; an element that changes mode
+    # at the solution is fine if the point is still at rest (a friction parallel to a spring
+    # found stuck), not if it moves it (e.g. the tyre spinning on a steep, slippery road)
+    tol = 1e-8 * max(1.0, float(np.max(np.abs(x0[: m.n_bodies]))))
+    if not op.certificate.drift_norm <= tol:
+        changed = {
+            fi.name: f"{names[fi.name]} -> {op.mode_dict()[fi.name]}"
+            for f, fi in enumerate(m.frictions)
+            if op.mode.fm[f] != mode0.fm[f]
+        }
+        raise ValueError(
+            f"locked_trim: no locked steady state there ({where}): at the trim the speeds "
+            f"accelerate (drift {op.certificate.drift_norm:.3g}); modes changed: {changed}"
         )
     return op
 

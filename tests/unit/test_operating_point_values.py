@@ -316,3 +316,18 @@ def test_locked_trim_near_the_clutch_capacity() -> None:
     shape = pm.y[k] + (pm.y[k + 1] - pm.y[k]) * (0.088 - 0.085) / (0.09 - 0.085)
     assert cl.capacity == pytest.approx(P.clutch.k12_max * shape, rel=1e-12)
     assert 0.0 < cl.margin < cl.capacity
+
+
+def test_locked_trim_rejects_a_spinning_tyre() -> None:
+    # a slippery road (mu_tyre = 0.02) on a 0.2 rad slope: at the trim's throttle the tyre
+    # spins: no locked steady state (it was returned as a valid "equilibrium" with the tyre
+    # slipping and the speeds accelerating)
+    params = P.replace(**{"vehicle.mu_tyre": 0.02})
+    with pytest.raises(
+        ValueError,
+        match=r"no locked steady state there .*modes changed: .*'tyre': 'grip -> slip\+'",
+    ):
+        L.locked_trim(Drivetrain(params, kind="full"), vehicle_speed_kmh=20.0, slope=0.2)
+    # the same road with the default grip (mu_tyre = 0.8) holds
+    op = L.locked_trim(Drivetrain(P, kind="full"), vehicle_speed_kmh=20.0, slope=0.2)
+    assert op.mode_dict()["tyre"] == "grip" and op.certificate.drift_norm < 1e-8
