@@ -331,3 +331,11 @@ def test_locked_trim_rejects_a_spinning_tyre() -> None:
     # the same road with the default grip (mu_tyre = 0.8) holds
     op = L.locked_trim(Drivetrain(P, kind="full"), vehicle_speed_kmh=20.0, slope=0.2)
     assert op.mode_dict()["tyre"] == "grip" and op.certificate.drift_norm < 1e-8
+
+
+def test_locked_trim_rejects_a_tyre_slipping_from_the_start() -> None:
+    # an icy road (mu_tyre = 0.001) on a 0.3 rad slope: the tyre slips already at the initial
+    # guess (throttle 0.3, the springs at the road load), before any solve
+    params = P.replace(**{"vehicle.mu_tyre": 0.001})
+    with pytest.raises(ValueError, match=r"the initial decision gives .*'tyre': 'slip\+'"):
+        L.locked_trim(Drivetrain(params, kind="full"), vehicle_speed_kmh=20.0, slope=0.3)
